@@ -1,0 +1,34 @@
+"""veriloc-rt: 5G NR OTDOA positioning security on ray-traced urban canyons and 38.901 UMa.
+
+The public API is re-exported here lazily, so that ``import veriloc_rt`` stays light and Sionna
+(with its LLVM back end) is only loaded by the functions that trace rays.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+_EXPORTS = {
+    "Config": "veriloc_rt.config",
+    "load_config": "veriloc_rt.config",
+    "InputError": "veriloc_rt.errors",
+    "CIR": "veriloc_rt.propagation.cir",
+    "urban_canyon": "veriloc_rt.scene.canyon",
+    "trace": "veriloc_rt.propagation.raytrace",
+    "gold_sequence": "veriloc_rt.nr.prs",
+    "prs_c_init": "veriloc_rt.nr.prs",
+    "prs_sequence": "veriloc_rt.nr.prs",
+    "uma_pathloss_db": "veriloc_rt.propagation.uma",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'veriloc_rt' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)

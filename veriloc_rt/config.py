@@ -1,0 +1,197 @@
+"""The run configuration: nested, frozen, validated; unknown keys are rejected.
+
+Load with :func:`load_config` (a JSON file) or :func:`config_from_dict`. Every field has a
+default, so ``{}`` is the built-in default scenario. Errors name the dotted field path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .configtools import from_dict, json_schema, param, section, to_dict
+from .errors import InputError, bad_value
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Propagation scene: a procedural urban canyon or an external Mitsuba XML scene."""
+
+    source: str = param("canyon", "'canyon' for the procedural Manhattan grid, or a path to a "
+                        "Sionna-compatible Mitsuba XML scene")
+    building_height_m: float = param(15.0, "mean building height", lo=1.0, hi=200.0)
+    height_jitter_m: float = param(0.0, "building heights uniform in mean +- jitter (seeded)",
+                                   lo=0.0, hi=100.0)
+    street_width_m: float = param(5.0, "street width between blocks", lo=2.0, hi=100.0)
+    block_size_m: float = param(30.0, "side of the square building blocks", lo=2.0, hi=500.0)
+    extent_m: float = param(450.0, "half-side of the square area the street grid covers",
+                            lo=20.0, hi=5000.0)
+    margin_m: float = param(60.0, "emit only buildings within this 2-D distance of a used BS "
+                            "or of the trajectory (crop: model no more than the scene needs)",
+                            lo=0.0, hi=5000.0)
+    building_material: str = param("concrete", "ITU-R P.2040 material of the buildings",
+                                   choices=("concrete", "brick", "plasterboard", "wood",
+                                            "glass", "ceiling_board", "chipboard", "floorboard",
+                                            "metal", "marble", "very_dry_ground",
+                                            "medium_dry_ground", "wet_ground"))
+    ground_material: str = param("medium_dry_ground", "ITU-R P.2040 material of the ground",
+                                 choices=("concrete", "very_dry_ground", "medium_dry_ground",
+                                          "wet_ground", "marble", "metal"))
+    material_thickness_m: float = param(0.3, "slab thickness of the materials", lo=0.001, hi=10.0)
+
+    @property
+    def is_canyon(self) -> bool:
+        return self.source == "canyon"
+
+    def validate(self, path: str) -> None:
+        if not self.is_canyon and not self.source.endswith(".xml"):
+            raise bad_value(f"{path}.source", self.source, "'canyon' or a path ending in .xml")
+
+
+@dataclass(frozen=True)
+class TopologyConfig:
+    """Hexagonal BS layout: 3 BSs per cell at alternate vertices of its hexagon."""
+
+    isd_m: float = param(500.0, "inter-site distance (distance between cell centres)",
+                         lo=20.0, hi=20000.0)
+    bs_height_m: float = param(25.0, "BS antenna height", lo=1.0, hi=300.0)
+    random_offset: bool = param(True, "random offset and rotation of the layout per Monte Carlo "
+                                "iteration, drawn from the seed")
+    iteration: int = param(0, "Monte Carlo iteration index (selects the layout draw)", lo=0)
+
+
+@dataclass(frozen=True)
+class TrajectoryConfig:
+    """UE path (street-following generator or CSV) and the adversary that follows it."""
+
+    source: str = param("generator", "'generator' or a CSV path with columns t,x,y[,z]")
+    num_points: int = param(1200, "number of trajectory points", lo=2, hi=1_000_000)
+    dt_s: float = param(1.0, "time between points", lo=0.001, hi=3600.0, lo_open=True)
+    ue_height_m: float = param(1.5, "UE antenna height above ground", lo=0.1, hi=100.0)
+    region_m: float = param(250.0, "half-side of the square, centred on the origin, the "
+                            "generated UE drives in", lo=10.0, hi=5000.0)
+    max_speed_mps: float = param(13.9, "top cruising speed", lo=0.1, hi=70.0)
+    min_speed_mps: float = param(3.0, "lowest cruising speed", lo=0.0, hi=70.0)
+    accel_mps2: float = param(2.0, "acceleration and braking", lo=0.1, hi=20.0)
+    stop_probability: float = param(0.3, "probability of stopping at an intersection",
+                                    lo=0.0, hi=1.0)
+    max_stop_s: float = param(12.0, "longest stop at an intersection", lo=0.0, hi=600.0)
+    turn_probability: float = param(0.4, "probability of turning at an intersection",
+                                    lo=0.0, hi=1.0)
+    adversary_lag_points: int = param(10, "the adversary follows the UE's path this many points "
+                                      "behind", lo=0, hi=100_000)
+    adversary_min_separation_m: float = param(5.0, "the adversary never gets closer than this "
+                                              "along the path (it queues behind a stopped UE)",
+                                              lo=0.5, hi=1000.0)
+
+    def validate(self, path: str) -> None:
+        if self.min_speed_mps > self.max_speed_mps:
+            raise bad_value(f"{path}.min_speed_mps", self.min_speed_mps,
+                            f"a value <= max_speed_mps ({self.max_speed_mps})")
+
+
+@dataclass(frozen=True)
+class ArrayConfig:
+    """The UE's uniform linear array (horizontal)."""
+
+    num_elements: int = param(5, "number of ULA elements", lo=1, hi=64)
+    spacing_wavelengths: float = param(0.5, "element spacing", lo=0.05, hi=4.0, lo_open=False)
+    axis_azimuth_deg: float = param(0.0, "azimuth of the array axis (from +x, counter-clockwise)",
+                                    lo=-360.0, hi=360.0)
+
+
+@dataclass(frozen=True)
+class RayTracingConfig:
+    """Sionna RT fidelity knobs (every one trades time for accuracy)."""
+
+    max_depth: int = param(2, "maximum number of interactions per path", lo=0, hi=10)
+    rays_per_source: int = param(1_000_000, "rays launched per BS (samples_per_src)",
+                                 lo=1000, hi=100_000_000)
+    adversary_rays_per_source: int = param(100_000, "rays launched per adversary position "
+                                           "(short street-level links)", lo=1000, hi=100_000_000)
+    los: bool = param(True, "line-of-sight paths")
+    specular_reflection: bool = param(True, "specular reflections")
+    diffraction: bool = param(True, "first-order wedge diffraction")
+    diffuse_reflection: bool = param(False, "diffuse scattering")
+    refraction: bool = param(False, "refraction through walls")
+    max_paths_per_link: int = param(32, "keep the strongest N paths per link", lo=1, hi=4096)
+    rx_batch_size: int = param(400, "receivers per PathSolver call (bounds peak memory)",
+                               lo=1, hi=100_000)
+    cache_dir: str = param(".veriloc-cache", "directory of the on-disk propagation cache "
+                           "('' disables caching)")
+
+
+@dataclass(frozen=True)
+class PropagationConfig:
+    """Channel model for every link."""
+
+    model: str = param("raytrace", "'raytrace' (Sionna RT on the scene) or 'uma' "
+                       "(stochastic TR 38.901 UMa)", choices=("raytrace", "uma"))
+    carrier_frequency_hz: float = param(3.5e9, "carrier frequency", lo=0.5e9, hi=100e9)
+    raytrace: RayTracingConfig = section(RayTracingConfig, "ray-tracing fidelity")
+    ue_array: ArrayConfig = section(ArrayConfig, "UE antenna array")
+
+
+@dataclass(frozen=True)
+class Config:
+    """veriloc-rt run configuration."""
+
+    seed: int = param(1, "drives every random draw", lo=0, hi=2**63 - 1)
+    scene: SceneConfig = section(SceneConfig, "scene")
+    topology: TopologyConfig = section(TopologyConfig, "BS layout")
+    trajectory: TrajectoryConfig = section(TrajectoryConfig, "UE and adversary paths")
+    propagation: PropagationConfig = section(PropagationConfig, "propagation model")
+
+    def replace(self, **changes: Any) -> "Config":
+        """Copy with top-level fields changed (``seed=...``)."""
+        return dataclasses.replace(self, **changes)
+
+
+def config_from_dict(data: dict) -> Config:
+    """Validated :class:`Config` from JSON data; raises :class:`InputError`."""
+    return from_dict(Config, data)
+
+
+def load_config(path: str | Path | None) -> Config:
+    """Load a JSON config file; ``None`` gives the built-in default.
+
+    Relative paths inside the config (scene XML, trajectory CSV) are resolved against the
+    config file's folder.
+    """
+    if path is None:
+        return Config()
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise InputError(str(path), f"cannot read config file ({exc.strerror or exc})") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(str(path), f"not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    cfg = config_from_dict(data)
+    return _resolve_paths(cfg, p.parent)
+
+
+def _resolve_paths(cfg: Config, base: Path) -> Config:
+    scene, traj = cfg.scene, cfg.trajectory
+    if not scene.is_canyon and not Path(scene.source).is_absolute():
+        scene = dataclasses.replace(scene, source=str((base / scene.source).resolve()))
+    if traj.source != "generator" and not Path(traj.source).is_absolute():
+        traj = dataclasses.replace(traj, source=str((base / traj.source).resolve()))
+    return dataclasses.replace(cfg, scene=scene, trajectory=traj)
+
+
+def config_to_dict(cfg: Config) -> dict:
+    """The resolved config as JSON-ready data."""
+    return to_dict(cfg)
+
+
+def config_schema() -> dict:
+    """JSON schema of the config."""
+    schema = json_schema(Config)
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    return schema

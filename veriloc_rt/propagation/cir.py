@@ -1,0 +1,199 @@
+"""The one channel-impulse-response type every propagation model produces.
+
+Axis order, declared once here and kept everywhere downstream:
+``[num_points, num_tx, ...]`` then the antenna axis (UE array elements) then ``num_paths``.
+A *link slot* ``j`` of point ``k`` is the link from transmitter ``tx_index[k, j]`` to the
+receiver at ``rx_pos[k]``. Paths are padded to a common ``num_paths``; ``valid`` masks them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..constants import SPEED_OF_LIGHT
+
+#: Interaction codes (Sionna RT's ``InteractionType`` bit values)
+INTERACTION_NONE = 0
+INTERACTION_SPECULAR = 1
+INTERACTION_DIFFUSE = 2
+INTERACTION_REFRACTION = 4
+INTERACTION_DIFFRACTION = 8
+
+
+@dataclass(frozen=True, eq=False)
+class CIR:
+    """Multipath channel impulse responses for a set of links over a trajectory.
+
+    Gains are passband path coefficients (amplitude and phase of the field, path loss included,
+    carrier phase ``exp(-j 2 pi fc tau)`` *not* included) at each UE antenna element; the
+    baseband coefficient is ``gains * exp(-2j*pi*fc*delays)``.
+
+    delays : [num_points, num_tx, num_paths] float64, s (absolute propagation delay)
+    gains : [num_points, num_tx, num_ant, num_paths] complex128, linear amplitude
+    aoa_az, aoa_zen : [num_points, num_tx, num_paths] float64, rad (arrival at the receiver)
+    aod_az, aod_zen : [num_points, num_tx, num_paths] float64, rad (departure at the transmitter)
+    doppler : [num_points, num_tx, num_paths] float64, Hz
+    interactions : [num_points, num_tx, num_paths, max_depth] uint8, ``INTERACTION_*`` codes
+    valid : [num_points, num_tx, num_paths] bool
+    tx_index : [num_points, num_tx] int64, transmitter id (-1: no link in this slot)
+    tx_pos : [num_points, num_tx, 3] float64, m
+    rx_pos : [num_points, 3] float64, m
+    los : [num_points, num_tx] bool, the link has an unobstructed direct path
+    carrier_frequency : float, Hz
+    """
+
+    delays: np.ndarray
+    gains: np.ndarray
+    aoa_az: np.ndarray
+    aoa_zen: np.ndarray
+    aod_az: np.ndarray
+    aod_zen: np.ndarray
+    doppler: np.ndarray
+    interactions: np.ndarray
+    valid: np.ndarray
+    tx_index: np.ndarray
+    tx_pos: np.ndarray
+    rx_pos: np.ndarray
+    los: np.ndarray
+    carrier_frequency: float
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        p, t, n = self.delays.shape
+        expect = {
+            "gains": (p, t, self.gains.shape[2], n), "aoa_az": (p, t, n), "aoa_zen": (p, t, n),
+            "aod_az": (p, t, n), "aod_zen": (p, t, n), "doppler": (p, t, n), "valid": (p, t, n),
+            "tx_index": (p, t), "tx_pos": (p, t, 3), "rx_pos": (p, 3), "los": (p, t),
+        }
+        for name, shape in expect.items():
+            got = getattr(self, name).shape
+            if got != shape:
+                raise ValueError(f"CIR.{name} has shape {got}, expected {shape}")
+        if self.interactions.shape[:3] != (p, t, n):
+            raise ValueError(f"CIR.interactions has shape {self.interactions.shape}, "
+                             f"expected ({p}, {t}, {n}, max_depth)")
+
+    # -- sizes -------------------------------------------------------------------------------
+    @property
+    def num_points(self) -> int:
+        return self.delays.shape[0]
+
+    @property
+    def num_tx(self) -> int:
+        return self.delays.shape[1]
+
+    @property
+    def num_ant(self) -> int:
+        return self.gains.shape[2]
+
+    @property
+    def num_paths(self) -> int:
+        return self.delays.shape[2]
+
+    # -- derived quantities ------------------------------------------------------------------
+    def baseband_gains(self) -> np.ndarray:
+        """gains * exp(-j 2 pi fc tau), zero on invalid paths.
+
+        :returns: [num_points, num_tx, num_ant, num_paths] complex128
+        """
+        phase = np.exp(-2j * np.pi * self.carrier_frequency * self.delays)[:, :, None, :]
+        return np.where(self.valid[:, :, None, :], self.gains * phase, 0.0)
+
+    def path_power(self) -> np.ndarray:
+        """Power of each path averaged over antenna elements (0 where invalid).
+
+        :returns: [num_points, num_tx, num_paths] float64, linear
+        """
+        return np.where(self.valid, np.mean(np.abs(self.gains) ** 2, axis=2), 0.0)
+
+    def first_path_delay(self) -> np.ndarray:
+        """Delay of the earliest valid path (NaN where a link has none).
+
+        :returns: [num_points, num_tx] float64, s
+        """
+        d = np.where(self.valid, self.delays, np.inf)
+        out = d.min(axis=-1)
+        return np.where(np.isfinite(out), out, np.nan)
+
+    def has_path(self) -> np.ndarray:
+        """[num_points, num_tx] bool: the link has at least one valid path."""
+        return self.valid.any(axis=-1) & (self.tx_index >= 0)
+
+    def geometric_delay(self) -> np.ndarray:
+        """Straight-line distance / c between each link's ends.
+
+        :returns: [num_points, num_tx] float64, s
+        """
+        d = np.linalg.norm(self.tx_pos - self.rx_pos[:, None, :], axis=-1)
+        return d / SPEED_OF_LIGHT
+
+    def select(self, points: np.ndarray | slice) -> "CIR":
+        """The CIR restricted to some trajectory points (same link slots)."""
+        names = ("delays", "gains", "aoa_az", "aoa_zen", "aod_az", "aod_zen", "doppler",
+                 "interactions", "valid", "tx_index", "tx_pos", "rx_pos", "los")
+        return CIR(**{n: getattr(self, n)[points] for n in names},
+                   carrier_frequency=self.carrier_frequency, meta=dict(self.meta))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Plain arrays (for ``np.savez``)."""
+        names = ("delays", "gains", "aoa_az", "aoa_zen", "aod_az", "aod_zen", "doppler",
+                 "interactions", "valid", "tx_index", "tx_pos", "rx_pos", "los")
+        out = {n: getattr(self, n) for n in names}
+        out["carrier_frequency"] = np.float64(self.carrier_frequency)
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict, meta: dict | None = None) -> "CIR":
+        kw = {k: np.asarray(arrays[k]) for k in arrays if k != "carrier_frequency"}
+        return cls(**kw, carrier_frequency=float(arrays["carrier_frequency"]), meta=meta or {})
+
+
+def ula_element_positions(num_elements: int, spacing_m: float, axis_azimuth: float) -> np.ndarray:
+    """Positions of a horizontal ULA's elements relative to its centre.
+
+    :returns: [num_elements, 3] float64, m
+    """
+    offs = (np.arange(num_elements) - (num_elements - 1) / 2.0) * spacing_m
+    axis = np.array([np.cos(axis_azimuth), np.sin(axis_azimuth), 0.0])
+    return offs[:, None] * axis[None, :]
+
+
+def unit_vector(azimuth: np.ndarray, zenith: np.ndarray) -> np.ndarray:
+    """Unit vector of a direction (azimuth from +x counter-clockwise, zenith from +z).
+
+    :returns: [..., 3] float64
+    """
+    s = np.sin(zenith)
+    return np.stack([s * np.cos(azimuth), s * np.sin(azimuth), np.cos(zenith)], axis=-1)
+
+
+def array_response(aoa_az: np.ndarray, aoa_zen: np.ndarray, element_pos: np.ndarray,
+                   wavelength: float) -> np.ndarray:
+    """Plane-wave phase of each element for arrivals from (aoa_az, aoa_zen).
+
+    A wave arriving from direction u reaches element r earlier by r.u / c, so its phase is
+    ``exp(+j 2 pi r.u / lambda)`` (the synthetic-array model Sionna RT uses).
+
+    :param aoa_az, aoa_zen: [...] float64, rad
+    :param element_pos: [num_ant, 3] float64, m
+    :returns: [..., num_ant, ...] complex128, the antenna axis inserted before the last axis
+    """
+    u = unit_vector(aoa_az, aoa_zen)                       # [..., n, 3]
+    phase = np.einsum("...nc,ac->...an", u, element_pos)  # [..., ant, n]
+    return np.exp(2j * np.pi * phase / wavelength)
+
+
+def doppler_shift(aoa_az, aoa_zen, aod_az, aod_zen, v_rx, v_tx, wavelength: float) -> np.ndarray:
+    """Per-path Doppler from the receiver's and transmitter's velocities (static scene).
+
+    f_D = (v_rx . u_arrival + v_tx . u_departure) / lambda, with u the unit vectors pointing
+    from each end along the path (moving toward the other end raises the frequency).
+
+    :param v_rx: [num_points, 3] float64, m/s; v_tx: [num_points, num_tx, 3] float64, m/s
+    :returns: [num_points, num_tx, num_paths] float64, Hz
+    """
+    u_r = unit_vector(aoa_az, aoa_zen)
+    u_t = unit_vector(aod_az, aod_zen)
+    return (np.einsum("ptnc,pc->ptn", u_r, v_rx) + np.einsum("ptnc,ptc->ptn", u_t, v_tx)) / wavelength
