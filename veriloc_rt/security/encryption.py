@@ -1,0 +1,89 @@
+"""AES-CTR encryption of the PRS bit stream (paper section IV.A).
+
+``b_PRSenc = b_PRS XOR p`` with ``p`` the AES-CTR keystream, then QPSK (TS 38.211 5.1.3).
+
+Counter-block construction (128 bits, big-endian), one keystream per (BS, frame, slot, symbol)::
+
+    byte  0      domain   0x01 = PRS keystream (other uses of the key must take another value)
+    bytes 1..3   bs_id    24 bits
+    bytes 4..7   frame    32-bit frame counter (SFN extended by the hyper-frame number)
+    bytes 8..9   slot     slot within the frame, 16 bits
+    byte  10     symbol   OFDM symbol l within the slot
+    bytes 11..15 block    40-bit block counter, starts at 0
+
+CTR mode increments the whole block (NIST SP 800-38A 6.5; ``cryptography`` does the same), so a
+keystream of fewer than 2^40 blocks never carries out of the block field: two distinct
+(domain, bs_id, frame, slot, symbol) tuples use disjoint sets of counter blocks, and no
+(key, counter block) pair repeats across BSs, frames, slots and symbols, even if two BSs shared a
+key. The frame counter must not wrap under one key: at 10 ms per frame, 2^32 frames last 497 days,
+so keys are rotated well before that.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from cryptography.hazmat.primitives.ciphers import Cipher, algorithms, modes
+
+from ..nr.prs import prs_bits, qpsk
+
+#: domain byte of the PRS keystream
+DOMAIN_PRS = 0x01
+#: width of the block counter field [bits]
+BLOCK_COUNTER_BITS = 40
+_LIMITS = {"bs_id": 2**24, "frame": 2**32, "slot": 2**16, "symbol": 2**8}
+
+
+def counter_block(bs_id: int, frame: int, slot: int, symbol: int, domain: int = DOMAIN_PRS) -> bytes:
+    """Initial 16-byte counter block of one symbol's keystream (layout in the module docstring)."""
+    for name, value in (("bs_id", bs_id), ("frame", frame), ("slot", slot), ("symbol", symbol)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise TypeError(f"Argument `{name}` must be an integer, not {type(value).__name__}")
+        if not 0 <= int(value) < _LIMITS[name]:
+            raise ValueError(f"Argument `{name}` must be in [0, {_LIMITS[name] - 1}], not {value}")
+    if not 0 <= domain < 256:
+        raise ValueError(f"Argument `domain` must be a byte, not {domain}")
+    return (bytes([domain]) + int(bs_id).to_bytes(3, "big") + int(frame).to_bytes(4, "big")
+            + int(slot).to_bytes(2, "big") + bytes([int(symbol)]) + bytes(5))
+
+
+def aes_ctr_keystream(key: bytes, initial_block: bytes, num_bytes: int) -> bytes:
+    """AES-CTR keystream (encryption of zeros), NIST SP 800-38A 6.5.
+
+    :param key: 16 or 32 bytes (AES-128 / AES-256)
+    :param initial_block: the first counter block, 16 bytes
+    """
+    if len(key) not in (16, 32):
+        raise ValueError(f"Argument `key` must be 16 or 32 bytes, not {len(key)}")
+    if num_bytes > 16 * 2**BLOCK_COUNTER_BITS:
+        raise ValueError("keystream longer than the block counter field")
+    enc = Cipher(algorithms.AES(key), modes.CTR(initial_block)).encryptor()
+    return enc.update(bytes(num_bytes)) + enc.finalize()
+
+
+def keystream_bits(key: bytes, bs_id: int, frame: int, slot: int, symbol: int, num_bits: int) -> np.ndarray:
+    """The keystream p of one PRS symbol, bits MSB first.
+
+    :return: p : [num_bits] uint8, 0/1
+    """
+    block = counter_block(bs_id, frame, slot, symbol)
+    stream = aes_ctr_keystream(key, block, -(-num_bits // 8))
+    return np.unpackbits(np.frombuffer(stream, dtype=np.uint8))[:num_bits]
+
+
+def encrypted_prs_bits(key: bytes, bs_id: int, n_id_seq: int, frame: int, slot: int, symbol: int,
+                       length: int) -> np.ndarray:
+    """b_PRSenc = b_PRS XOR p for ``length`` PRS symbols.
+
+    :return: bits : [2 length] uint8
+    """
+    return prs_bits(n_id_seq, slot, symbol, length) ^ keystream_bits(key, bs_id, frame, slot, symbol,
+                                                                     2 * length)
+
+
+def encrypted_prs_sequence(key: bytes, bs_id: int, n_id_seq: int, frame: int, slot: int, symbol: int,
+                           length: int) -> np.ndarray:
+    """Encrypted PRS s_PRSenc(m), m = 0..length-1: QPSK of :func:`encrypted_prs_bits`.
+
+    :return: s : [length] complex128, unit-energy QPSK
+    """
+    return qpsk(encrypted_prs_bits(key, bs_id, n_id_seq, frame, slot, symbol, length))
