@@ -192,7 +192,7 @@ class Multilaterator:
         centroid = np.append(bs[:, :2].mean(axis=0), self.ue_height_m)
         if valid is not None and not use[ref_index]:
             return MultilaterationResult(centroid, False, STATUS_TOO_FEW,
-                                         "reference BS not detected", num_bs=int(use.sum()) - 1)
+                                         "reference BS not detected", num_bs=int(use.sum()))
         n = int(use.sum())
         if n < 3:
             return MultilaterationResult(centroid, False, STATUS_TOO_FEW,
