@@ -107,19 +107,25 @@ class ArrayConfig:
 class RayTracingConfig:
     """Sionna RT fidelity knobs (every one trades time for accuracy)."""
 
-    max_depth: int = param(2, "maximum number of interactions per path", lo=0, hi=10)
-    rays_per_source: int = param(1_000_000, "rays launched per BS (samples_per_src)",
-                                 lo=1000, hi=100_000_000)
-    adversary_rays_per_source: int = param(100_000, "rays launched per adversary position "
-                                           "(short street-level links)", lo=1000, hi=100_000_000)
+    max_depth: int = param(3, "maximum number of interactions per path", lo=0, hi=10)
+    direction: str = param("reciprocal", "'reciprocal': launch rays from the street-level end "
+                           "(UE, adversary) and use reciprocity, so the nearby roof edges that "
+                           "carry canyon links are densely sampled; 'forward': launch from the "
+                           "transmitter (BS)", choices=("reciprocal", "forward"))
+    rays_per_source: int = param(10_000, "rays launched per source (samples_per_src)",
+                                 lo=100, hi=100_000_000)
+    max_candidates_per_source: int = param(2000, "path-candidate buffer per source and target "
+                                           "(Sionna max_num_paths_per_src / num_targets)",
+                                           lo=10, hi=1_000_000)
     los: bool = param(True, "line-of-sight paths")
     specular_reflection: bool = param(True, "specular reflections")
     diffraction: bool = param(True, "first-order wedge diffraction")
     diffuse_reflection: bool = param(False, "diffuse scattering")
     refraction: bool = param(False, "refraction through walls")
     max_paths_per_link: int = param(32, "keep the strongest N paths per link", lo=1, hi=4096)
-    rx_batch_size: int = param(400, "receivers per PathSolver call (bounds peak memory)",
-                               lo=1, hi=100_000)
+    work_per_call: int = param(30_000_000, "bound on depth x rays x sources x targets per "
+                               "PathSolver call (Sionna's deterministic solver allocates this "
+                               "many entries, ~60 B each: bounds peak memory)", lo=100_000, hi=10**12)
     cache_dir: str = param(".veriloc-cache", "directory of the on-disk propagation cache "
                            "('' disables caching)")
 

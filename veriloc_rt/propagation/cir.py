@@ -21,6 +21,10 @@ INTERACTION_DIFFUSE = 2
 INTERACTION_REFRACTION = 4
 INTERACTION_DIFFRACTION = 8
 
+#: ``tx_index`` of an empty link slot, and of the adversary
+NO_TX = -1
+ADVERSARY_TX = -2
+
 
 @dataclass(frozen=True, eq=False)
 class CIR:
@@ -37,7 +41,7 @@ class CIR:
     doppler : [num_points, num_tx, num_paths] float64, Hz
     interactions : [num_points, num_tx, num_paths, max_depth] uint8, ``INTERACTION_*`` codes
     valid : [num_points, num_tx, num_paths] bool
-    tx_index : [num_points, num_tx] int64, transmitter id (-1: no link in this slot)
+    tx_index : [num_points, num_tx] int64, transmitter id (NO_TX: empty slot, ADVERSARY_TX)
     tx_pos : [num_points, num_tx, 3] float64, m
     rx_pos : [num_points, 3] float64, m
     los : [num_points, num_tx] bool, the link has an unobstructed direct path
@@ -119,7 +123,7 @@ class CIR:
 
     def has_path(self) -> np.ndarray:
         """[num_points, num_tx] bool: the link has at least one valid path."""
-        return self.valid.any(axis=-1) & (self.tx_index >= 0)
+        return self.valid.any(axis=-1) & (self.tx_index != NO_TX)
 
     def geometric_delay(self) -> np.ndarray:
         """Straight-line distance / c between each link's ends.

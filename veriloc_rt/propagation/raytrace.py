@@ -1,0 +1,335 @@
+"""Ray-traced CIRs for every link a run uses, batched and cached on disk.
+
+Links traced (and nothing else):
+
+* serving BS -> UE, per trajectory point and serving slot (3 per point);
+* serving BS -> adversary (what a meaconer receives), per point;
+* adversary -> UE, per point.
+
+The uplink (UE -> BS) is the reciprocal of the downlink and is never traced. Identical links
+(same ends to the millimetre, e.g. the adversary standing where the UE stood) are traced once.
+
+In ``direction='reciprocal'`` (the default) rays are launched from the street-level end of each
+link (UE or adversary) and the result is reversed by reciprocity (isotropic, co-polarised antennas
+and reciprocal materials: same delays and gains, arrival and departure angles swapped). In a
+canyon the roof edges that carry almost every BS link are a few metres from the UE, so they are
+sampled densely by few rays, whereas rays launched from a BS hundreds of metres away must be
+counted in millions to hit them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..config import PropagationConfig, RayTracingConfig
+from ..configtools import to_dict
+from ..constants import SPEED_OF_LIGHT
+from ..scene.export import scene_digest
+from .cir import ADVERSARY_TX, CIR, INTERACTION_NONE, NO_TX, array_response, doppler_shift, ula_element_positions
+from .sionna_rt import RawPaths
+
+log = logging.getLogger(__name__)
+
+#: Bump when the cached array layout or the tracing recipe changes
+CACHE_VERSION = 1
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(frozen=True, eq=False)
+class Propagation:
+    """Every link of a run.
+
+    bs_ue : CIR [num_points, 3] serving BS -> UE at the UE's ULA (slot 0 is the RSTD reference)
+    bs_adv : CIR [num_points, 3] the same BSs -> the adversary (single antenna)
+    adv_ue : CIR [num_points, 1] adversary -> UE at the UE's ULA
+    """
+
+    bs_ue: CIR
+    bs_adv: CIR
+    adv_ue: CIR
+    stats: dict = field(default_factory=dict)
+
+
+def _key(pos: np.ndarray) -> np.ndarray:
+    """Millimetre-rounded integer keys of positions. [n, 3] -> [n, 3] int64"""
+    return np.round(np.asarray(pos, dtype=float) * 1000.0).astype(np.int64)
+
+
+def _unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique rows in order of first appearance -> (first index per unique, inverse)."""
+    _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return first[order], rank[inverse.ravel()]
+
+
+def plan_calls(src_id: np.ndarray, dst_id: np.ndarray, per_pair_work: int,
+               work_per_call: int, max_sources: int = 400, max_targets: int = 4) -> list[np.ndarray]:
+    """Split links (in the given order) into PathSolver calls.
+
+    A call traces every one of its sources to every one of its targets, so its work is
+    ``per_pair_work * num_sources * num_targets``; links are added while that stays within
+    ``work_per_call``, and while a call has at most ``max_targets`` targets (more only when one
+    source needs them): every source costs ``rays x num_targets``, so a call of point-to-point
+    links (adversary -> UE) must stay small, while consecutive UE points with the same serving
+    BSs share one call.
+
+    :returns: list of index arrays into the links
+    """
+    calls, cur, srcs, dsts = [], [], set(), set()
+    for i, (s, d) in enumerate(zip(src_id.tolist(), dst_id.tolist())):
+        ns, nd = len(srcs | {s}), len(dsts | {d})
+        if cur and (per_pair_work * ns * nd > work_per_call or ns > max_sources
+                    or nd > max(max_targets, len(dsts))):
+            calls.append(np.array(cur))
+            cur, srcs, dsts = [], set(), set()
+        cur.append(i)
+        srcs.add(s)
+        dsts.add(d)
+    if cur:
+        calls.append(np.array(cur))
+    return calls
+
+
+class LinkTracer:
+    """Traces arbitrary (source, target) position pairs with one fidelity, using the cache.
+
+    :param scene_xml: scene to load (lazily, on the first cache miss)
+    :param cache_dir: folder for cached calls (None: no cache)
+    """
+
+    def __init__(self, scene_xml: str | Path, fc: float, fid: RayTracingConfig, seed: int,
+                 cache_dir: str | Path | None):
+        self.scene_xml = Path(scene_xml)
+        self.fc = fc
+        self.fid = fid
+        self.seed = seed
+        self.cache_dir = Path(cache_dir) / "raytrace" if cache_dir else None
+        self._tracer = None
+        self._base_key = None
+        self.stats = {"calls": 0, "cache_hits": 0, "links_traced": 0, "trace_s": 0.0}
+
+    def _tracer_obj(self):
+        if self._tracer is None:
+            from .sionna_rt import SionnaTracer
+            self._tracer = SionnaTracer(self.scene_xml, self.fc, self.seed)
+        return self._tracer
+
+    def _call_key(self, src: np.ndarray, dst: np.ndarray, pairs: np.ndarray, rays: int) -> str:
+        if self._base_key is None:
+            fid = {k: v for k, v in to_dict(self.fid).items() if k not in ("cache_dir", "work_per_call")}
+            versions = {p: metadata.version(p) for p in ("sionna-rt", "mitsuba", "drjit")}
+            self._base_key = json.dumps({"v": CACHE_VERSION, "scene": scene_digest(self.scene_xml),
+                                         "fc": self.fc, "fid": fid, "seed": self.seed,
+                                         "versions": versions}, sort_keys=True)
+        h = hashlib.sha256(self._base_key.encode())
+        h.update(str(rays).encode())
+        for a in (_key(src), _key(dst), pairs.astype(np.int64)):
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()[:32]
+
+    def trace(self, src: np.ndarray, dst: np.ndarray, rays: int,
+              progress: Progress | None = None) -> RawPaths:
+        """Paths from ``src[i]`` (Sionna source) to ``dst[i]`` (Sionna target) for every i.
+
+        :param src, dst: [num_links, 3] float64, m
+        :returns: RawPaths with one row per link, in Sionna's source -> target orientation
+        """
+        src_first, src_id = _unique_rows(_key(src))
+        dst_first, dst_id = _unique_rows(_key(dst))
+        pair_keys = np.stack([src_id, dst_id], axis=1)
+        pair_first, pair_inv = _unique_rows(pair_keys)
+        u_src, u_dst = src_id[pair_first], dst_id[pair_first]
+        order = np.lexsort((u_dst, u_src))
+        per_pair = max(self.fid.max_depth, 1) * rays
+        calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call)
+        results: list[RawPaths | None] = [None] * len(pair_first)
+        done = 0
+        total = len(pair_first)
+        for call in calls:
+            links = order[call]
+            cs, cs_inv = np.unique(u_src[links], return_inverse=True)
+            cd, cd_inv = np.unique(u_dst[links], return_inverse=True)
+            pairs = np.stack([cs_inv.ravel(), cd_inv.ravel()], axis=1)
+            s_pos, d_pos = src[src_first[cs]], dst[dst_first[cd]]
+            raw = self._call(s_pos, d_pos, pairs, rays)
+            for j, li in enumerate(links):
+                results[li] = _row(raw, j)
+            done += len(links)
+            if progress:
+                progress(round(done * len(src) / total), len(src))
+        merged = RawPaths.concat(results) if results else None
+        return _take(merged, pair_inv)
+
+    def _call(self, s_pos: np.ndarray, d_pos: np.ndarray, pairs: np.ndarray, rays: int) -> RawPaths:
+        key = self._call_key(s_pos, d_pos, pairs, rays) if self.cache_dir else None
+        if key:
+            f = self.cache_dir / f"{key}.npz"
+            if f.is_file():
+                self.stats["cache_hits"] += 1
+                with np.load(f) as data:
+                    return RawPaths.from_npz(data)
+        t0 = time.perf_counter()
+        tracer = self._tracer_obj()
+        tracer.max_paths_per_src = min(self.fid.max_candidates_per_source * len(d_pos), 10**6)
+        raw = tracer.trace(s_pos, d_pos, self.fid, rays, pairs=pairs)
+        self.stats["trace_s"] += time.perf_counter() - t0
+        self.stats["calls"] += 1
+        self.stats["links_traced"] += len(pairs)
+        if key:
+            self.cache_dir.mkdir(parents=True, exist_ok=True)
+            tmp = self.cache_dir / f".{key}.{os.getpid()}.tmp.npz"
+            np.savez(tmp, **raw.to_npz())
+            os.replace(tmp, self.cache_dir / f"{key}.npz")
+        return raw
+
+
+def _row(raw: RawPaths, j: int) -> RawPaths:
+    return RawPaths(**{f: getattr(raw, f)[j:j + 1] for f in RawPaths.FIELDS})
+
+
+def _scatter(raw: RawPaths, idx: np.ndarray, n: int) -> RawPaths:
+    """Rows of ``raw`` placed at ``idx`` of ``n`` rows; the other rows hold no path."""
+    out = {}
+    for f in RawPaths.FIELDS:
+        x = getattr(raw, f)
+        full = np.zeros((n,) + x.shape[1:], dtype=x.dtype)
+        if f == "tau":
+            full[:] = -1.0
+        full[idx] = x
+        out[f] = full
+    return RawPaths(**out)
+
+
+def _take(raw: RawPaths, idx: np.ndarray) -> RawPaths:
+    return RawPaths(**{f: getattr(raw, f)[idx] for f in RawPaths.FIELDS})
+
+
+def trace_links(tracer: LinkTracer, tx: np.ndarray, rx: np.ndarray, reciprocal: bool,
+                rays: int, progress: Progress | None = None) -> RawPaths:
+    """Physical tx -> rx links; with ``reciprocal`` the rays start at the receiver.
+
+    :returns: RawPaths in the physical orientation: ``theta_r/phi_r`` at the receiver,
+        ``theta_t/phi_t`` at the transmitter
+    """
+    if not reciprocal:
+        return tracer.trace(tx, rx, rays, progress)
+    rev = tracer.trace(rx, tx, rays, progress)
+    return RawPaths(tau=rev.tau, a=rev.a, theta_r=rev.theta_t, phi_r=rev.phi_t,
+                    theta_t=rev.theta_r, phi_t=rev.phi_r,
+                    interactions=_reverse_interactions(rev.interactions), valid=rev.valid)
+
+
+def _reverse_interactions(inter: np.ndarray) -> np.ndarray:
+    """Reverse each path's interaction sequence (its used prefix). [..., depth] uint8"""
+    depth = inter.shape[-1]
+    k = np.count_nonzero(inter != INTERACTION_NONE, axis=-1)[..., None]
+    j = np.arange(depth)
+    src = np.where(j < k, k - 1 - j, j)
+    return np.take_along_axis(inter, src, axis=-1)
+
+
+def build_cir(raw: RawPaths, shape: tuple[int, int], tx_index: np.ndarray, tx_pos: np.ndarray,
+              rx_pos: np.ndarray, v_tx: np.ndarray, v_rx: np.ndarray, fc: float,
+              element_pos: np.ndarray | None, max_paths: int) -> CIR:
+    """Physical-orientation raw links (row-major over ``shape`` = (points, slots)) -> CIR.
+
+    :param element_pos: [num_ant, 3] receive array element offsets (None: one antenna)
+    :param v_tx: [P, T, 3] m/s; v_rx: [P, 3] m/s
+    """
+    raw = raw.keep_strongest(max_paths)
+    P, T = shape
+    n = raw.tau.shape[1]
+
+    def g(x):
+        return x.reshape((P, T) + x.shape[1:])
+
+    tau, a, valid = g(raw.tau), g(raw.a), g(raw.valid)
+    aoa_az, aoa_zen, aod_az, aod_zen = g(raw.phi_r), g(raw.theta_r), g(raw.phi_t), g(raw.theta_t)
+    lam = SPEED_OF_LIGHT / fc
+    if element_pos is None:
+        gains = a[:, :, None, :]
+    else:
+        gains = a[:, :, None, :] * array_response(aoa_az, aoa_zen, element_pos, lam)
+    gains = np.where(valid[:, :, None, :], gains, 0.0)
+    dop = np.where(valid, doppler_shift(aoa_az, aoa_zen, aod_az, aod_zen, v_rx, v_tx, lam), 0.0)
+    inter = g(raw.interactions)
+    los = np.any(valid & np.all(inter == INTERACTION_NONE, axis=-1), axis=-1)
+    return CIR(delays=np.where(valid, tau, -1.0), gains=gains.astype(np.complex128),
+               aoa_az=aoa_az, aoa_zen=aoa_zen, aod_az=aod_az, aod_zen=aod_zen, doppler=dop,
+               interactions=inter, valid=valid, tx_index=np.asarray(tx_index, dtype=np.int64),
+               tx_pos=tx_pos, rx_pos=rx_pos, los=los, carrier_frequency=fc,
+               meta={"model": "raytrace", "num_paths_kept": n})
+
+
+def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None = None,
+          cache_dir: str | Path | None = "default",
+          adversary_points: np.ndarray | None = None) -> Propagation:
+    """Ray-trace every link of ``geometry`` (a :class:`~veriloc_rt.scenario.Geometry`).
+
+    :param adversary_points: [num_points] bool, points at which the adversary transmits or
+        listens (default: all); adversary links elsewhere are left empty (``NO_TX``)
+
+    :param cache_dir: "default" uses ``cfg.raytrace.cache_dir``; None disables the cache
+    :param progress: called as ``progress(links_done, links_total)``
+    """
+    fid = cfg.raytrace
+    if cache_dir == "default":
+        cache_dir = fid.cache_dir or None
+    fc = cfg.carrier_frequency_hz
+    ue, adv, serving, bs_pos = geometry.ue, geometry.adversary, geometry.serving, geometry.bs_pos
+    P = ue.num_points
+    tracer = LinkTracer(geometry.scene_xml, fc, fid, seed, cache_dir)
+    recip = fid.direction == "reciprocal"
+    lam = SPEED_OF_LIGHT / fc
+    arr = cfg.ue_array
+    elem = ula_element_positions(arr.num_elements, arr.spacing_wavelengths * lam,
+                                 np.deg2rad(arr.axis_azimuth_deg))
+    bs_tx = bs_pos[serving]                      # [P, 3, 3]
+    zeros_v = np.zeros((P, 3, 3))
+    # one planning pass over all links so progress covers the whole job
+    active = np.ones(P, bool) if adversary_points is None else np.asarray(adversary_points, bool)
+    if active.shape != (P,):
+        raise ValueError(f"`adversary_points` must have shape ({P},), not {active.shape}")
+    act = np.flatnonzero(active)
+    # BS -> UE and BS -> adversary in one pass (adversary positions repeat UE positions), then
+    # the point-to-point adversary -> UE links, which batch poorly, in a pass of their own
+    bs_tx_links = np.concatenate([bs_tx.reshape(-1, 3), bs_tx[act].reshape(-1, 3)])
+    bs_rx_links = np.concatenate([np.repeat(ue.pos, 3, axis=0), np.repeat(adv.pos[act], 3, axis=0)])
+    total = len(bs_tx_links) + len(act)
+
+    def report(offset):
+        return (lambda done, _n: progress(offset + done, total)) if progress else None
+
+    t0 = time.perf_counter()
+    raw = trace_links(tracer, bs_tx_links, bs_rx_links, recip, fid.rays_per_source, report(0))
+    t_bs = time.perf_counter() - t0
+    raw_a = trace_links(tracer, adv.pos[act], ue.pos[act], recip, fid.rays_per_source,
+                        report(len(bs_tx_links)))
+    n, m = 3 * P, 3 * len(act)
+    raw_bs_ue = _take(raw, np.arange(n))
+    raw_bs_adv = _scatter(_take(raw, np.arange(n, n + m)), np.repeat(act, 3) * 3 + np.tile(np.arange(3), len(act)), n)
+    raw_adv = _scatter(raw_a, act, P)
+    mp = fid.max_paths_per_link
+    adv_slot = np.where(active[:, None], serving, NO_TX)
+    bs_ue = build_cir(raw_bs_ue, (P, 3), serving, bs_tx, ue.pos, zeros_v, ue.vel, fc, elem, mp)
+    bs_adv = build_cir(raw_bs_adv, (P, 3), adv_slot, bs_tx, adv.pos, zeros_v, adv.vel, fc, None, mp)
+    adv_ue = build_cir(raw_adv, (P, 1), np.where(active, ADVERSARY_TX, NO_TX)[:, None],
+                       adv.pos[:, None, :], ue.pos, adv.vel[:, None, :], ue.vel, fc, elem, mp)
+    stats = dict(tracer.stats, wall_s=time.perf_counter() - t0, bs_pass_s=t_bs, links=total,
+                 bs_links=len(bs_tx_links), adversary_links=len(act))
+    log.info("ray tracing: %d links, %d calls (%d from cache), %.1f s tracing",
+             stats["links"], stats["calls"], stats["cache_hits"], stats["trace_s"])
+    return Propagation(bs_ue=bs_ue, bs_adv=bs_adv, adv_ue=adv_ue, stats=stats)

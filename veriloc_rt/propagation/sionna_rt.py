@@ -1,0 +1,159 @@
+"""Thin, batched wrapper around Sionna RT's PathSolver.
+
+It knows nothing of trajectories: it traces (one transmitter, many receivers) groups and
+returns raw per-link paths in float64 / complex128, with invalid paths masked. Antenna arrays
+are single isotropic, vertically polarised elements at both ends; the UE's ULA is applied
+afterwards from the arrival angles (the synthetic-array model), so one trace serves any array.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..backend import import_sionna
+from ..config import RayTracingConfig
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class RawPaths:
+    """Paths of ``num_links`` links, padded to ``num_paths``.
+
+    tau : [num_links, num_paths] float64, s;  a : [num_links, num_paths] complex128
+    theta_r, phi_r, theta_t, phi_t : [num_links, num_paths] float64, rad
+    interactions : [num_links, num_paths, max_depth] uint8;  valid : [num_links, num_paths] bool
+    """
+
+    tau: np.ndarray
+    a: np.ndarray
+    theta_r: np.ndarray
+    phi_r: np.ndarray
+    theta_t: np.ndarray
+    phi_t: np.ndarray
+    interactions: np.ndarray
+    valid: np.ndarray
+
+    FIELDS = ("tau", "a", "theta_r", "phi_r", "theta_t", "phi_t", "interactions", "valid")
+
+    @property
+    def num_links(self) -> int:
+        return self.tau.shape[0]
+
+    def keep_strongest(self, max_paths: int) -> "RawPaths":
+        """At most ``max_paths`` paths per link (the strongest), then sorted by delay."""
+        power = np.where(self.valid, np.abs(self.a) ** 2, -1.0)
+        n = min(max_paths, self.tau.shape[1])
+        top = np.argsort(-power, axis=1, kind="stable")[:, :n]
+        tau_top = np.take_along_axis(np.where(self.valid, self.tau, np.inf), top, axis=1)
+        order = np.take_along_axis(top, np.argsort(tau_top, axis=1, kind="stable"), axis=1)
+        pick = {f: np.take_along_axis(getattr(self, f), order if getattr(self, f).ndim == 2
+                                      else order[..., None], axis=1) for f in self.FIELDS}
+        return RawPaths(**pick)
+
+    @staticmethod
+    def concat(parts: list["RawPaths"]) -> "RawPaths":
+        width = max(p.tau.shape[1] for p in parts)
+        depth = max(p.interactions.shape[2] for p in parts)
+        out = {}
+        for f in RawPaths.FIELDS:
+            arrs = []
+            for p in parts:
+                x = getattr(p, f)
+                pad = [(0, 0), (0, width - x.shape[1])] + ([(0, depth - x.shape[2])] if x.ndim == 3 else [])
+                arrs.append(np.pad(x, pad))
+            out[f] = np.concatenate(arrs, axis=0)
+        out["tau"] = np.where(out["valid"], out["tau"], -1.0)
+        return RawPaths(**out)
+
+    def to_npz(self) -> dict[str, np.ndarray]:
+        return {f: getattr(self, f) for f in self.FIELDS}
+
+    @classmethod
+    def from_npz(cls, data) -> "RawPaths":
+        return cls(**{f: np.asarray(data[f]) for f in cls.FIELDS})
+
+
+class SionnaTracer:
+    """Loads a scene once and traces (tx, [rx...]) groups with fixed fidelity.
+
+    :param scene_xml: Mitsuba XML scene
+    :param frequency: carrier frequency [Hz]
+    :param seed: PathSolver seed (deterministic candidate generation)
+    """
+
+    def __init__(self, scene_xml: str | Path, frequency: float, seed: int):
+        self._rt = rt = import_sionna()
+        self.scene = rt.load_scene(str(scene_xml), merge_shapes=True)
+        self.scene.frequency = frequency
+        self.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
+        self.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
+        self.solver = rt.PathSolver(deterministic=True)
+        self.seed = int(seed) % (2**31 - 1)
+        self.max_paths_per_src = 10**6
+
+    def trace(self, tx_pos: np.ndarray, rx_pos: np.ndarray, fid: RayTracingConfig,
+              rays_per_source: int, pairs: np.ndarray | None = None) -> RawPaths:
+        """Trace every transmitter to every receiver in one PathSolver call.
+
+        :param tx_pos: [num_tx, 3] float64, m; rx_pos: [num_rx, 3] float64, m
+        :param pairs: [num_links, 2] int (tx, rx) indices to return; default all tx x rx pairs
+            in row-major (tx, rx) order
+        :returns: one row per returned pair
+        """
+        rt, scene = self._rt, self.scene
+        tx_pos = np.atleast_2d(tx_pos)
+        rx_pos = np.atleast_2d(rx_pos)
+        for name in list(scene.transmitters):
+            scene.remove(name)
+        for name in list(scene.receivers):
+            scene.remove(name)
+        for i, p in enumerate(tx_pos):
+            scene.add(rt.Transmitter(f"tx{i}", position=[float(v) for v in p]))
+        for i, p in enumerate(rx_pos):
+            scene.add(rt.Receiver(f"rx{i}", position=[float(v) for v in p]))
+        paths = self.solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=self.max_paths_per_src,
+                            samples_per_src=rays_per_source, synthetic_array=True, los=fid.los,
+                            specular_reflection=fid.specular_reflection,
+                            diffuse_reflection=fid.diffuse_reflection,
+                            refraction=fid.refraction, diffraction=fid.diffraction,
+                            seed=self.seed)
+        return _extract(paths, len(tx_pos), len(rx_pos), pairs)
+
+
+def _extract(paths, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPaths:
+    """Sionna tensors -> float64 arrays [num_links, num_paths] in (tx, rx) pair order."""
+    def arr(x, dtype=np.float64):
+        return np.asarray(x, dtype=dtype)
+
+    tau = arr(paths.tau)                                   # [R, T, N] (synthetic array)
+    num_paths = tau.shape[-1]
+    shape = (num_rx, num_tx, num_paths)
+    tau = tau.reshape(shape)
+    a = (arr(paths.a[0]) + 1j * arr(paths.a[1])).reshape(shape)  # [R, 1, T, 1, N]
+    valid = arr(paths.valid, bool).reshape(shape)
+    th_r, ph_r = arr(paths.theta_r).reshape(shape), arr(paths.phi_r).reshape(shape)
+    th_t, ph_t = arr(paths.theta_t).reshape(shape), arr(paths.phi_t).reshape(shape)
+    inter = arr(paths.interactions, np.uint8)              # [D, R, T, N]
+    depth = inter.shape[0] if inter.ndim == 4 else 0
+    inter = np.moveaxis(inter.reshape((depth,) + shape), 0, -1) if depth else \
+        np.zeros(shape + (1,), np.uint8)
+    if pairs is None:
+        t_idx, r_idx = np.meshgrid(np.arange(num_tx), np.arange(num_rx), indexing="ij")
+        t_idx, r_idx = t_idx.ravel(), r_idx.ravel()
+    else:
+        t_idx, r_idx = pairs[:, 0], pairs[:, 1]
+
+    def pick(x):
+        return x[r_idx, t_idx]
+
+    v = pick(valid)
+    return RawPaths(tau=np.where(v, pick(tau), -1.0), a=np.where(v, pick(a), 0.0),
+                    theta_r=np.where(v, pick(th_r), 0.0), phi_r=np.where(v, pick(ph_r), 0.0),
+                    theta_t=np.where(v, pick(th_t), 0.0), phi_t=np.where(v, pick(ph_t), 0.0),
+                    interactions=np.where(v[..., None], pick(inter), 0).astype(np.uint8),
+                    valid=v)
