@@ -1,0 +1,71 @@
+"""Config validation: field-path errors, unknown keys, schema, file loading."""
+
+import json
+
+import pytest
+
+from veriloc_rt.config import Config, config_from_dict, config_schema, load_config
+from veriloc_rt.configtools import to_dict
+from veriloc_rt.errors import InputError
+
+
+def test_empty_config_is_the_default():
+    assert config_from_dict({}) == Config()
+
+
+@pytest.mark.parametrize("data, field, words", [
+    ({"scene": {"street_width_m": -1}}, "scene.street_width_m", ">= 2.0"),
+    ({"scene": {"nope": 1}}, "scene.nope", "unknown key"),
+    ({"nope": 1}, "nope", "unknown key"),
+    ({"seed": "x"}, "seed", "an integer"),
+    ({"seed": True}, "seed", "an integer"),
+    ({"propagation": {"model": "foo"}}, "propagation.model", "'raytrace', 'uma'"),
+    ({"propagation": {"raytrace": {"max_depth": 11}}}, "propagation.raytrace.max_depth", "<= 10"),
+    ({"propagation": {"raytrace": {"los": 1}}}, "propagation.raytrace.los", "true or false"),
+    ({"scene": {"source": "city.obj"}}, "scene.source", ".xml"),
+    ({"trajectory": {"min_speed_mps": 20, "max_speed_mps": 10}}, "trajectory.min_speed_mps",
+     "max_speed_mps"),
+    ({"scene": {"building_height_m": float("inf")}}, "scene.building_height_m", "finite"),
+    ({"scene": []}, "scene", "an object"),
+])
+def test_bad_values_name_the_field(data, field, words):
+    with pytest.raises(InputError) as exc:
+        config_from_dict(data)
+    assert exc.value.field == field
+    assert words in str(exc.value)
+    assert "\n" not in str(exc.value)
+
+
+def test_round_trip_through_json():
+    cfg = config_from_dict({"seed": 7, "scene": {"height_jitter_m": 2.5}})
+    again = config_from_dict(json.loads(json.dumps(to_dict(cfg))))
+    assert again == cfg
+
+
+def test_schema_lists_every_field_with_defaults():
+    schema = config_schema()
+    scene = schema["properties"]["scene"]
+    assert scene["additionalProperties"] is False
+    assert scene["properties"]["street_width_m"]["default"] == 5.0
+    assert scene["properties"]["street_width_m"]["minimum"] == 2.0
+    fields = set(to_dict(Config()))
+    assert fields == set(schema["properties"])
+
+
+def test_load_config_errors_name_the_file(tmp_path):
+    with pytest.raises(InputError, match="cannot read"):
+        load_config(tmp_path / "missing.json")
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(InputError) as exc:
+        load_config(bad)
+    assert exc.value.field == str(bad) and "line 1" in exc.value.problem
+
+
+def test_relative_paths_resolve_against_the_config_folder(tmp_path):
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps({"scene": {"source": "city/scene.xml"},
+                             "trajectory": {"source": "t.csv"}}))
+    cfg = load_config(f)
+    assert cfg.scene.source == str(tmp_path / "city" / "scene.xml")
+    assert cfg.trajectory.source == str(tmp_path / "t.csv")

@@ -1,0 +1,159 @@
+"""The ``veriloc-rt`` command. Thin: parsing, progress and printing; the work is in the library.
+
+Exit codes: 0 success, 2 bad input (one line ``error: <field>: <problem>``), 1 anything else.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+from .errors import InputError
+
+
+class ProgressBar:
+    """One-line progress bar with ETA on stderr (redraws at most 5 times a second)."""
+
+    def __init__(self, stream=sys.stderr, width: int = 30):
+        self.stream, self.width = stream, width
+        self.label, self.start, self.last = None, 0.0, 0.0
+
+    def __call__(self, label: str, done: int, total: int) -> None:
+        now = time.monotonic()
+        if label != self.label:
+            if self.label is not None:
+                self.stream.write("\n")
+            self.label, self.start, self.last = label, now, 0.0
+        if now - self.last < 0.2 and done < total:
+            return
+        self.last = now
+        frac = done / total if total else 1.0
+        elapsed = now - self.start
+        eta = elapsed / frac - elapsed if frac > 0 else float("nan")
+        bar = "#" * int(frac * self.width)
+        self.stream.write(f"\r{label:<12} [{bar:<{self.width}}] {done}/{total} "
+                          f"{elapsed:5.0f}s elapsed, ETA {eta:5.0f}s")
+        if done >= total:
+            self.stream.write("\n")
+            self.label = None
+        self.stream.flush()
+
+
+def _load(config_path: str | None, points: int | None = None, seed: int | None = None):
+    from .config import load_config
+
+    cfg = load_config(config_path)
+    if points is not None:
+        if points < 2:
+            raise InputError("--points", f"got {points}, expected an integer >= 2")
+        cfg = dataclasses.replace(cfg, trajectory=dataclasses.replace(cfg.trajectory,
+                                                                       num_points=points))
+    if seed is not None:
+        if seed < 0:
+            raise InputError("--seed", f"got {seed}, expected an integer >= 0")
+        cfg = cfg.replace(seed=seed)
+    return cfg
+
+
+def cmd_run(args) -> int:
+    from .engine import run
+
+    cfg = _load(args.config, args.points, args.seed)
+    out = Path(args.out)
+    res = run(cfg, out, progress=ProgressBar())
+    s = res.summary
+    print(f"scene: {s['num_buildings']} buildings, {s['num_bs']} serving BSs, "
+          f"{s['num_points']} points, UE path {s['ue_path_length_m']:.0f} m "
+          f"(mean speed {s['ue_speed_mps_mean']:.1f} m/s)")
+    for name in ("bs_to_ue", "bs_to_adversary", "adversary_to_ue"):
+        d = s[name]
+        line = f"{name:16s} links {d['links']:5d}  with path {d['links_with_path_pct']:5.1f} %"
+        if "los_pct" in d:
+            line += (f"  LoS {d['los_pct']:5.1f} %  paths/link {d['paths_per_link_mean']:5.1f}"
+                     f"  DS p50 {d['delay_spread_ns_p50']:6.1f} ns"
+                     f"  first-path excess p50 {d['first_path_excess_m_p50']:5.1f} m")
+        print(line)
+    st = s["raytrace_stats"]
+    print(f"ray tracing: {st['calls']} solver calls, {st['cache_hits']} from cache, "
+          f"{st['trace_s']:.1f} s tracing; total {res.timing_s['total']:.1f} s")
+    print(f"wrote {out}/ (run.json, propagation_summary.json, scene_top_view.png, scene/)")
+    return 0
+
+
+def cmd_scene(args) -> int:
+    from .report.scene_plot import plot_top_view
+    from .scenario import build_geometry
+
+    cfg = _load(args.config)
+    out = Path(args.out)
+    geo = build_geometry(cfg, out)
+    png = plot_top_view(geo, out / "scene_top_view.png")
+    nb = getattr(geo.scene, "num_buildings", None)
+    print(f"wrote {geo.scene_xml}" + (f" ({nb} buildings)" if nb is not None else "")
+          + f" and {png}")
+    return 0
+
+
+def cmd_config(args) -> int:
+    from .config import config_schema, config_to_dict
+
+    if args.action == "schema":
+        print(json.dumps(config_schema(), indent=2))
+    else:
+        print(json.dumps(config_to_dict(_load(args.config)), indent=2))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run a scenario (no CONFIG: the built-in default)")
+    r.add_argument("config", nargs="?", help="JSON config file")
+    r.add_argument("--out", default="results", help="output folder (default: results)")
+    r.add_argument("--points", type=int, help="number of trajectory points")
+    r.add_argument("--seed", type=int, help="override the config's seed")
+    r.set_defaults(func=cmd_run)
+    s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
+    s.add_argument("config", nargs="?", help="JSON config file")
+    s.add_argument("--out", required=True, help="output folder")
+    s.set_defaults(func=cmd_scene)
+    c = sub.add_parser("config", help="print the config schema or a resolved config")
+    c.add_argument("action", choices=("schema", "show"))
+    c.add_argument("config", nargs="?", help="JSON config file (for show)")
+    c.set_defaults(func=cmd_config)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("\ninterrupted; finished ray-tracing batches are kept in the cache", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - one line for the user, details with -vv
+        from .backend import BackendError
+
+        if isinstance(exc, BackendError):
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
+        if args.verbose >= 2:
+            raise
+        print(f"error: {type(exc).__name__}: {exc} (run with -vv for the traceback)",
+              file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""Top view of a run's geometry: buildings, streets, BSs, UE and adversary paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def plot_top_view(geometry, path: str | Path, title: str | None = None,
+                  estimated_xy: np.ndarray | None = None) -> Path:
+    """Write a PNG top view of ``geometry`` (a :class:`~veriloc_rt.scenario.Geometry`).
+
+    Emitted buildings are dark, buildings of the full grid that the crop left out are light,
+    streets are white. Serving BSs are triangles (labelled with their id), the UE path is a
+    line coloured by time, the adversary's positions are orange dots.
+
+    :param estimated_xy: [num_points, 2] float64, m, optional estimated positions to overlay
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection, PatchCollection
+    from matplotlib.patches import Rectangle
+
+    fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
+    scene = geometry.scene
+
+    def rects(fp, **kw):
+        patches = [Rectangle((f[0], f[1]), f[2] - f[0], f[3] - f[1]) for f in fp]
+        ax.add_collection(PatchCollection(patches, **kw))
+
+    if geometry.full_canyon is not None:
+        rects(geometry.full_canyon.footprints, facecolor="0.88", edgecolor="none")
+        rects(scene.footprints, facecolor="0.45", edgecolor="none")
+    else:
+        tri = scene.triangles
+        ax.add_collection(matplotlib.collections.PolyCollection(
+            tri[:, :, :2], facecolor="0.6", edgecolor="none", alpha=0.3))
+    ue = geometry.ue.pos
+    seg = np.stack([ue[:-1, :2], ue[1:, :2]], axis=1)
+    lc = LineCollection(seg, cmap="viridis", linewidths=2.0)
+    lc.set_array(geometry.ue.t[:-1])
+    ax.add_collection(lc)
+    fig.colorbar(lc, ax=ax, fraction=0.035, pad=0.02, label="time [s]")
+    adv = geometry.adversary.pos
+    ax.plot(adv[::5, 0], adv[::5, 1], ".", color="tab:orange", ms=3, label="adversary (every 5th)")
+    ax.plot(ue[0, 0], ue[0, 1], "o", color="tab:green", ms=8, label="UE start")
+    layout = geometry.layout
+    cells = np.unique(layout.cell_of(ue[:, :2]), axis=0)
+    ang = np.deg2rad(np.arange(0, 361, 60) + 30.0) + layout.rotation
+    for c in layout.cell_centre(cells):
+        ax.plot(c[0] + layout.side * np.cos(ang), c[1] + layout.side * np.sin(ang), "--",
+                color="tab:red", lw=0.8, alpha=0.6)
+    bs = geometry.bs_pos
+    ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", ms=11, mec="k", label="serving BSs")
+    for i, p in enumerate(bs):
+        ax.annotate(f"BS{i}", p[:2], textcoords="offset points", xytext=(6, 6), fontsize=9)
+    if estimated_xy is not None:
+        ax.plot(estimated_xy[:, 0], estimated_xy[:, 1], "x", color="tab:purple", ms=3,
+                label="estimated")
+    pts = np.concatenate([bs[:, :2], ue[:, :2]])
+    lo, hi = pts.min(axis=0) - 40, pts.max(axis=0) + 40
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("y (north) [m]")
+    ax.set_title(title or "Scene top view")
+    ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
