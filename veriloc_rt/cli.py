@@ -79,8 +79,11 @@ def cmd_run(args) -> int:
                      f"  first-path excess p50 {d['first_path_excess_m_p50']:5.1f} m")
         print(line)
     st = s["raytrace_stats"]
-    print(f"ray tracing: {st['calls']} solver calls, {st['cache_hits']} from cache, "
-          f"{st['trace_s']:.1f} s tracing; total {res.timing_s['total']:.1f} s")
+    if cfg.propagation.model == "raytrace":
+        print(f"ray tracing: {st['calls']} solver calls, {st['cache_hits']} from cache, "
+              f"{st['trace_s']:.1f} s tracing; total {res.timing_s['total']:.1f} s")
+    else:
+        print(f"{st['model']}: {st['wall_s']:.1f} s; total {res.timing_s['total']:.1f} s")
     print(f"wrote {out}/ (run.json, propagation_summary.json, scene_top_view.png, scene/)")
     return 0
 

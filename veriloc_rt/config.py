@@ -137,6 +137,9 @@ class PropagationConfig:
     model: str = param("raytrace", "'raytrace' (Sionna RT on the scene) or 'uma' "
                        "(stochastic TR 38.901 UMa)", choices=("raytrace", "uma"))
     carrier_frequency_hz: float = param(3.5e9, "carrier frequency", lo=0.5e9, hi=100e9)
+    uma_mode: str = param("fast_fading", "UMa: 'fast_fading' (clusters and rays, TR 38.901 "
+                          "7.5) or 'pathloss_only' (one direct path per link, as MATLAB-era "
+                          "simulators)", choices=("fast_fading", "pathloss_only"))
     raytrace: RayTracingConfig = section(RayTracingConfig, "ray-tracing fidelity")
     ue_array: ArrayConfig = section(ArrayConfig, "UE antenna array")
 

@@ -53,10 +53,10 @@ def package_versions() -> dict:
 def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | None = None,
                         cache_dir: str | Path | None = "default") -> Propagation:
     """CIRs of every link, from the configured model."""
-    if cfg.propagation.model != "raytrace":
-        from .errors import InputError
-        raise InputError("propagation.model", f"{cfg.propagation.model!r} is not available in "
-                         "this release; use 'raytrace'")
+    if cfg.propagation.model == "uma":
+        from .propagation.stochastic import uma_propagation
+
+        return uma_propagation(geometry, cfg.propagation, cfg.seed)
     from .propagation.raytrace import trace
 
     cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None
