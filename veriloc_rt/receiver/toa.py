@@ -1,0 +1,213 @@
+"""Doppler scan, timing and ToA from per-block cross-spectra with a local replica.
+
+Both receiver front ends (:mod:`veriloc_rt.receiver.sync`) reduce the received signal and the
+replica of one transmitter to *cross-spectra*: for each block b (a PRS symbol) and antenna a, a
+set of in-band frequency bins with
+
+    c_ab(tau) = sum_k S_abk exp(j 2 pi f_k tau),
+
+the correlation of the block's received samples with the block's replica at lag tau (exact for
+the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one). From them,
+:class:`ToAEstimator`
+
+1. scans Doppler: C_a(tau, nu) = sum_b c_ab(tau) exp(-j 2 pi nu t_b); the metric
+   max_tau sum_a |C_a|^2 on a grid of nu, refined by parabolic interpolation;
+2. corrects the residual phase: the phase of the per-block peaks, derotated by nu, is regressed
+   on t_b and the slope refines nu;
+3. forms the delay profile sum_a |C_a(tau)|^2 (zero-padded IFFT on a grid), detects the BS if
+   its peak clears the noise floor by ``hearability_db`` (the floor is exact: sigma^2 sum_k
+   w_k^2 |X_k|^2 per block and antenna, with sigma^2 the per-RE noise variance);
+4. picks the ToA: the strongest peak, or the first local peak above both a noise-derived
+   threshold (chi-square with 2A degrees of freedom at ``false_alarm`` per bin) and
+   ``first_path_rel_db`` below the strongest (on a Hann-windowed profile);
+5. refines it below the grid step by parabolic interpolation on exact evaluations of the profile.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..channel_config import ReceiverConfig
+
+__all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
+
+
+@dataclass(frozen=True, eq=False)
+class CrossSpectra:
+    """Per-block, per-antenna cross-spectra of a received signal with one replica.
+
+    spectra : [num_ant, num_blocks, num_bins] complex128, S_abk (c_ab(tau) = sum_k S_abk e^{j2pi f_k tau})
+    freqs : [num_bins] float64, Hz, integer multiples of ``bin_spacing_hz``
+    bin_spacing_hz : float, Hz (the profile is periodic in tau with period 1 / bin_spacing_hz)
+    block_times : [num_blocks] float64, s, centre of each block (any common origin)
+    ref_power : [num_blocks, num_bins] float64, |X_bk|^2 scaled so that white noise of
+        variance sigma^2 per RE gives var c_ab(tau) = sigma^2 sum_k w_k^2 ref_power[b, k]
+    band_hz : float, Hz, occupied bandwidth (for the frequency window)
+    """
+
+    spectra: np.ndarray
+    freqs: np.ndarray
+    bin_spacing_hz: float
+    block_times: np.ndarray
+    ref_power: np.ndarray
+    band_hz: float
+
+    @property
+    def num_ant(self) -> int:
+        return self.spectra.shape[0]
+
+
+@dataclass(frozen=True, eq=False)
+class ToAEstimate:
+    """Timing of one transmitter.
+
+    detected : bool, the peak cleared the hearability threshold
+    toa_s : float, s, arrival time relative to the receiver's timing reference (NaN if not detected)
+    doppler_hz : float, Hz, estimated Doppler (frequency offset) of the strongest component
+    peak_snr_db : float, dB, strongest profile peak over the noise floor
+    peak : [num_ant] complex128, per-antenna correlation at (toa, doppler)
+    snapshots : [num_ant, num_blocks] complex128, per-block correlation at toa, Doppler-derotated
+    noise_var : float, per-RE noise variance used
+    """
+
+    detected: bool
+    toa_s: float
+    doppler_hz: float
+    peak_snr_db: float
+    peak: np.ndarray
+    snapshots: np.ndarray
+    noise_var: float
+
+
+def _parabola(ym: float, y0: float, yp: float) -> float:
+    """Vertex offset in [-1, 1] of the parabola through (-1, ym), (0, y0), (1, yp)."""
+    den = ym - 2.0 * y0 + yp
+    if den >= 0 or not np.isfinite(den):
+        return 0.0
+    return float(np.clip(0.5 * (ym - yp) / den, -1.0, 1.0))
+
+
+class ToAEstimator:
+    """Doppler, ToA and hearability of one transmitter from its :class:`CrossSpectra`.
+
+    :param cfg: receiver config (ToA rule, window, thresholds, Doppler scan)
+    :param guard_s: negative lags searched (the timing reference's guard), s
+    """
+
+    def __init__(self, cfg: ReceiverConfig, guard_s: float = 0.25e-6):
+        self.cfg = cfg
+        self.guard_s = float(guard_s)
+
+    # -- helpers ---------------------------------------------------------------------------
+    def _window(self, cs: CrossSpectra, kind: str) -> np.ndarray:
+        if kind == "none":
+            return np.ones(cs.freqs.shape)
+        x = np.clip(cs.freqs / (cs.band_hz + cs.bin_spacing_hz), -0.5, 0.5)
+        return np.cos(np.pi * x) ** 2
+
+    def _grid(self, cs: CrossSpectra) -> tuple[np.ndarray, np.ndarray, int]:
+        """Grid indices of the bins, the searched lag indices and the grid size."""
+        idx = np.round(cs.freqs / cs.bin_spacing_hz).astype(np.int64)
+        span = int(idx.max() - idx.min() + 1)
+        n_up = 1 << int(np.ceil(np.log2(max(span, 2))))
+        n_up *= self.cfg.upsample
+        step = 1.0 / (n_up * cs.bin_spacing_hz)
+        lags = np.arange(-int(np.ceil(self.guard_s / step)), int(np.ceil(self.cfg.search_window_s / step)) + 1)
+        if lags.size >= n_up:
+            raise ValueError("search window exceeds the correlation period 1 / bin spacing")
+        return idx, lags, n_up
+
+    @staticmethod
+    def _profiles(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int) -> np.ndarray:
+        """Complex profile on the lag grid: [..., num_bins] -> [..., num_lags]."""
+        buf = np.zeros(g.shape[:-1] + (n_up,), dtype=np.complex128)
+        buf[..., idx % n_up] = g
+        return np.fft.ifft(buf, axis=-1)[..., lags % n_up] * n_up
+
+    @staticmethod
+    def _eval(g: np.ndarray, freqs: np.ndarray, tau: float) -> np.ndarray:
+        """Exact complex profile at one delay: [..., num_bins] -> [...]."""
+        return g @ np.exp(2j * np.pi * freqs * tau)
+
+    # -- main ------------------------------------------------------------------------------
+    def __call__(self, cs: CrossSpectra, noise_var: float) -> ToAEstimate:
+        """Estimate Doppler and ToA; ``noise_var`` is the per-RE noise variance (>= 0)."""
+        cfg = self.cfg
+        s, t = cs.spectra, cs.block_times
+        a_n = cs.num_ant
+        idx, lags, n_up = self._grid(cs)
+        step = 1.0 / (n_up * cs.bin_spacing_hz)
+        tc = t - t.mean()
+        # 1. Doppler scan on the unwindowed metric
+        if cfg.doppler_max_hz > 0:
+            nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
+            rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])             # [V, B]
+            g_nu = np.einsum("vb,abk->vak", rot, s)
+            metric = np.sum(np.abs(self._profiles(g_nu, idx, lags, n_up)) ** 2, axis=1).max(axis=-1)
+            i = int(np.argmax(metric))
+            nu = float(nus[i])
+            if 0 < i < nus.size - 1:
+                nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
+        else:
+            nu = 0.0
+        # 2. residual phase correction from the per-block peaks
+        rot = np.exp(-2j * np.pi * nu * tc)
+        g = np.einsum("b,abk->ak", rot, s)
+        prof = self._profiles(g, idx, lags, n_up)
+        m_rect = np.sum(np.abs(prof) ** 2, axis=0)
+        tau_pk = float(lags[int(np.argmax(m_rect))] * step)
+        x = np.einsum("abk,k->ab", s, np.exp(2j * np.pi * cs.freqs * tau_pk)) * rot  # [A, B]
+        ref = np.sum(x, axis=1)
+        z = np.sum(x * np.conj(ref)[:, None], axis=0)                              # [B]
+        w = np.abs(z)
+        if cfg.doppler_max_hz > 0 and np.sum(w) > 0:
+            ph = np.angle(z)
+            tw = np.sum(w * tc) / np.sum(w)
+            slope = np.sum(w * (tc - tw) * ph) / max(np.sum(w * (tc - tw) ** 2), 1e-30)
+            dnu = slope / (2 * np.pi)
+            if abs(dnu) <= cfg.doppler_step_hz:
+                nu += dnu
+                rot = np.exp(-2j * np.pi * nu * tc)
+                g = np.einsum("b,abk->ak", rot, s)
+                prof = self._profiles(g, idx, lags, n_up)
+                m_rect = np.sum(np.abs(prof) ** 2, axis=0)
+        # 3. detection against the exact noise floor
+        nv = max(float(noise_var), 0.0)
+        floor_rect = a_n * nv * float(np.sum(cs.ref_power))
+        peak = float(m_rect.max())
+        tiny = 1e-30 + 1e-15 * peak
+        snr_db = 10 * np.log10(peak / max(floor_rect, tiny)) if peak > 0 else -np.inf
+        detected = bool(snr_db >= cfg.hearability_db)
+        # 4. ToA rule
+        if cfg.toa_method == "strongest":
+            win = np.ones(cs.freqs.shape)
+            metric = m_rect
+            i = int(np.argmax(metric))
+        else:
+            win = self._window(cs, cfg.first_path_window)
+            metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
+            floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
+            gamma = chi2.isf(cfg.false_alarm, 2 * a_n) / (2 * a_n)
+            thr = max(gamma * floor, metric.max() * 10 ** (-cfg.first_path_rel_db / 10))
+            i = int(np.flatnonzero(metric >= thr)[0])
+            while i + 1 < metric.size and metric[i + 1] > metric[i]:
+                i += 1
+        # 5. sub-sample refinement
+        if 0 < i < metric.size - 1:
+            tau = (lags[i] + _parabola(*metric[i - 1:i + 2])) * step
+        else:
+            tau = lags[i] * step
+        gw = g * win
+        h = step / 4
+        for _ in range(cfg.refine_steps):
+            vals = [float(np.sum(np.abs(self._eval(gw, cs.freqs, tau + d)) ** 2)) for d in (-h, 0.0, h)]
+            tau += h * _parabola(*vals)
+            h /= 4
+        pk = self._eval(g, cs.freqs, tau)
+        snaps = np.einsum("abk,k->ab", s, np.exp(2j * np.pi * cs.freqs * tau)) * rot
+        return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
+                           doppler_hz=float(nu), peak_snr_db=float(snr_db), peak=pk,
+                           snapshots=snaps, noise_var=nv)
