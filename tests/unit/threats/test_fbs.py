@@ -1,0 +1,111 @@
+"""FBS spoofing: replica delays reproduce the target's RSTDs; replica grids carry no valid tag."""
+
+import numpy as np
+import pytest
+
+from veriloc_rt.constants import SPEED_OF_LIGHT as C
+from veriloc_rt.nr.config import NRConfig
+from veriloc_rt.nr.grid import ReLayout
+from veriloc_rt.nr.transmitter import PRSTransmitter
+from veriloc_rt.receiver.multilateration import multilaterate
+from veriloc_rt.security.config import SecurityConfig
+from veriloc_rt.threats import (FalseBaseStation, FBSConfig, fbs_delays, fbs_delays_absolute,
+                                spoofer_replicas, target_position)
+
+#: RSTDs are ~1e-6 s; float64 differences of such values are exact to ~1e-21 s, 1e-15 s
+#: (0.3 um) leaves room for the distance arithmetic
+TOL_RSTD_S = 1e-15
+#: multilateration stops at xtol 1e-12 on exact RSTDs; 1 mm flags any real mismatch
+TOL_FIX_M = 1e-3
+
+BS = np.array([[250.0, 0.0, 25.0], [-125.0, 216.5, 25.0], [-125.0, -216.5, 25.0]])
+UE = np.array([20.0, -35.0, 1.5])
+
+
+def _toa_at_ue(delays, adversary, ue):
+    """Independent recomputation: replica i leaves the adversary at d_i, travels |a - ue|."""
+    return delays + np.linalg.norm(np.asarray(adversary) - ue) / C
+
+
+def _rstd_from_distances(bs, p):
+    d = np.linalg.norm(bs - p, axis=1)
+    return (d - d[0]) / C
+
+
+@pytest.mark.parametrize("adv_offset", [(-60.0, 10.0, 0.0), (400.0, 300.0, 0.0), (3.0, 0.0, 0.0)])
+def test_delays_reproduce_target_rstds_exactly(adv_offset):
+    adv = UE + np.array(adv_offset)
+    ue_est = UE + np.array([4.0, -3.0, 0.0])  # the adversary's estimate is 5 m off
+    plan = FalseBaseStation(FBSConfig(target_offset_m=100.0, target_bearing_deg=30.0))(BS, adv, ue_est)
+    assert np.all(plan.delays >= 0)
+    expect_target = ue_est + 100.0 * np.array([np.cos(np.pi / 6), np.sin(np.pi / 6), 0.0])
+    np.testing.assert_allclose(plan.target, expect_target, atol=1e-12)
+    toa = _toa_at_ue(plan.delays, adv, UE)  # measured at the TRUE UE position
+    np.testing.assert_allclose(toa - toa[0], _rstd_from_distances(BS, plan.target), rtol=0,
+                               atol=TOL_RSTD_S)
+
+
+def test_nonnegative_delays_equal_absolute_up_to_common_offset():
+    adv = UE + np.array([600.0, 0.0, 0.0])  # far adversary: absolute delays go negative
+    t = target_position(UE, 100.0, 0.0)
+    d_abs = fbs_delays_absolute(BS, t, adv, UE)
+    assert d_abs.min() < 0
+    d = fbs_delays(BS, t, adv, UE)
+    assert d.min() == pytest.approx(0.0, abs=1e-18) and np.all(d >= 0)
+    shift = d - d_abs
+    np.testing.assert_allclose(shift, shift[0], rtol=0, atol=TOL_RSTD_S)
+    # absolute delays: replica i reaches the UE when BS i's signal would reach the target
+    np.testing.assert_allclose(_toa_at_ue(d_abs, adv, UE), np.linalg.norm(BS - t, axis=1) / C,
+                               rtol=0, atol=TOL_RSTD_S)
+    # without adversary/UE: earliest replica at 0
+    d_rel = fbs_delays(BS, t)
+    np.testing.assert_allclose(d_rel - d_rel.min(), d_rel, atol=0)
+    np.testing.assert_allclose(d_rel - d_rel[0], _rstd_from_distances(BS, t), atol=TOL_RSTD_S)
+
+
+def test_multilateration_of_spoofed_rstds_lands_on_target():
+    adv = UE + np.array([-50.0, 20.0, 0.0])
+    plan = FalseBaseStation()(BS, adv, UE)
+    toa = _toa_at_ue(plan.delays, adv, UE)
+    fix = multilaterate(BS, toa - toa[0], ue_height_m=UE[2])
+    assert fix.ok
+    assert np.linalg.norm(fix.position[:2] - plan.target[:2]) < TOL_FIX_M
+    assert np.linalg.norm(fix.position[:2] - UE[:2]) == pytest.approx(100.0, abs=TOL_FIX_M)
+
+
+def test_spoofer_replicas_standard_prs_and_forged_tags(rng):
+    nr = NRConfig()
+    legit = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), [10, 11, 12])
+    layout = ReLayout.from_config(nr, True)
+    reps = spoofer_replicas(nr, 7, [(0, 1e-6), (2, 0.0)], rng, slots=[0, 3])
+    assert [(b, d) for b, d, _ in reps] == [(0, 1e-6), (2, 0.0)]
+    for bs, _, grid in reps:
+        prs_mask = layout.prs_mask(bs)
+        tag_mask = layout.tag_mask(bs)
+        ref = legit.replica(bs, 7, [0, 3], encrypted=False)
+        np.testing.assert_array_equal(grid[:, prs_mask], ref[:, prs_mask])  # standard PRS
+        tags = grid[:, tag_mask]
+        np.testing.assert_allclose(np.abs(tags), 1.0)  # unit-energy QPSK
+        assert set(np.round(tags.real * np.sqrt(2)).ravel()) == {-1.0, 1.0}
+        assert np.all(grid[:, ~(prs_mask | tag_mask)] == 0)
+    empty = spoofer_replicas(nr, 7, [(1, 0.0)], rng, slots=[0], tag_fill="none")[0][2]
+    assert np.all(empty[:, layout.tag_mask(1)] == 0)
+
+
+def test_spoofer_tags_are_random_between_draws():
+    nr = NRConfig()
+    a = spoofer_replicas(nr, 0, [(0, 0.0)], np.random.default_rng(1), slots=[0])[0][2]
+    b = spoofer_replicas(nr, 0, [(0, 0.0)], np.random.default_rng(2), slots=[0])[0][2]
+    mask = ReLayout.from_config(nr, True).tag_mask(0)
+    assert np.mean(a[:, mask] != b[:, mask]) > 0.5  # 3/4 of QPSK symbols differ on average
+
+
+def test_bad_inputs(rng):
+    with pytest.raises(ValueError, match="target"):
+        fbs_delays(BS, [0.0, 0.0])
+    with pytest.raises(ValueError, match="go together"):
+        fbs_delays(BS, UE, adversary=UE)
+    with pytest.raises(ValueError, match="delay"):
+        spoofer_replicas(NRConfig(), 0, [(0, -1e-9)], rng, slots=[0])
+    with pytest.raises(TypeError, match="rng"):
+        spoofer_replicas(NRConfig(), 0, [(0, 0.0)], 5, slots=[0])
