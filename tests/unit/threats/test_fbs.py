@@ -109,3 +109,19 @@ def test_bad_inputs(rng):
         spoofer_replicas(NRConfig(), 0, [(0, -1e-9)], rng, slots=[0])
     with pytest.raises(TypeError, match="rng"):
         spoofer_replicas(NRConfig(), 0, [(0, 0.0)], 5, slots=[0])
+
+
+def test_spoofed_grid_fails_hmac_verification_legit_passes(rng):
+    """Grid level, no channel: the UE sees legit + 10x stronger spoofer replica on BS 0's REs.
+    The legit grid alone verifies; overshadowed by random-QPSK tags it does not."""
+    from veriloc_rt.security.keys import simulated_keys
+    from veriloc_rt.security.tag_receiver import TagVerifier
+
+    nr = NRConfig(slots_per_frame=1)
+    sec = SecurityConfig(tag_scheme="hmac")
+    keys = simulated_keys([10, 11, 12], rng)
+    legit = PRSTransmitter(nr, sec, [10, 11, 12], keys)(frame=3, slots=[0])[0, 0]
+    verify = TagVerifier(nr, sec, [10, 11, 12], keys)
+    assert verify(legit, 0, 3, 0)
+    spoof = spoofer_replicas(nr, 3, [(0, 0.0)], rng, slots=[0])[0][2][0]
+    assert not verify(legit + 10.0 * spoof, 0, 3, 0)
