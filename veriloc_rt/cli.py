@@ -67,7 +67,9 @@ def cmd_run(args) -> int:
     out = Path(args.out)
     res = run(cfg, out, progress=ProgressBar())
     s = res.summary
-    print(f"scene: {s['num_buildings']} buildings, {s['num_bs']} serving BSs, "
+    what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
+            else f"{s['num_triangles']} triangles")
+    print(f"scene: {what}, {s['num_bs']} serving BSs, "
           f"{s['num_points']} points, UE path {s['ue_path_length_m']:.0f} m "
           f"(mean speed {s['ue_speed_mps_mean']:.1f} m/s)")
     for name in ("bs_to_ue", "bs_to_adversary", "adversary_to_ue"):

@@ -79,7 +79,10 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     summary = {
         "num_points": geometry.num_points,
         "num_bs": int(len(geometry.bs_pos)),
-        "num_buildings": int(getattr(geometry.scene, "num_buildings", 0)),
+        "num_buildings": getattr(geometry.scene, "num_buildings", None),
+        "num_triangles": int(geometry.scene.box_meshes()[1].shape[0]
+                             if hasattr(geometry.scene, "box_meshes")
+                             else geometry.scene.triangles.shape[0]),
         "ue_path_length_m": float(geometry.ue.s[-1] - geometry.ue.s[0]),
         "ue_speed_mps_mean": float(np.linalg.norm(geometry.ue.vel, axis=1).mean()),
         "bs_to_ue": summarize(prop.bs_ue),

@@ -1,0 +1,56 @@
+"""The command line as a user runs it: exit codes, one-line errors, files written."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "veriloc_rt.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd or ROOT)
+
+
+@pytest.mark.parametrize("config, field", [
+    ({"scene": {"street_width_m": -1}}, "scene.street_width_m"),
+    ({"trajectory": {"bogus": 1}}, "trajectory.bogus"),
+    ({"scene": {"source": "missing.xml"}}, "scene.source"),
+    ({"trajectory": {"source": "missing.csv"}}, "trajectory.source"),
+])
+def test_bad_input_is_one_line_exit_2(tmp_path, config, field):
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps(config))
+    r = cli("run", f, "--out", tmp_path / "out")
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"error: {field}: ")
+    assert "Traceback" not in r.stderr
+
+
+def test_trajectory_through_a_building_is_rejected(tmp_path):
+    csv = tmp_path / "t.csv"
+    csv.write_text("t,x,y\n0,0,0\n1,0,10\n2,12,12\n")  # (12, 12) is inside a 30 m block
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps({"trajectory": {"source": "t.csv"}}))
+    r = cli("scene", f, "--out", tmp_path / "out")
+    assert r.returncode == 2
+    assert "inside a building" in r.stderr and "point 2" in r.stderr
+
+
+def test_scene_command_writes_xml_ply_png(tmp_path):
+    r = cli("scene", ROOT / "configs" / "ci-tiny.json", "--out", tmp_path)
+    assert r.returncode == 0, r.stderr
+    for name in ("scene.xml", "meshes/buildings.ply", "meshes/ground.ply", "scene_top_view.png"):
+        assert (tmp_path / name).stat().st_size > 0
+    assert (tmp_path / "scene_top_view.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_config_schema_and_show():
+    r = cli("config", "schema")
+    assert r.returncode == 0 and json.loads(r.stdout)["additionalProperties"] is False
+    r = cli("config", "show", ROOT / "configs" / "ci-tiny.json")
+    assert r.returncode == 0 and json.loads(r.stdout)["trajectory"]["num_points"] == 40

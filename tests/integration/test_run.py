@@ -1,0 +1,51 @@
+"""Whole runs on tiny scenes: the procedural canyon (ray traced and UMa) and a shipped
+external XML scene with a CSV trajectory."""
+
+import json
+
+import pytest
+
+from veriloc_rt.cli import main
+
+from .test_cli import ROOT
+
+
+@pytest.mark.raytrace
+def test_run_tiny_canyon_then_cached(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    cfg = ROOT / "configs" / "ci-tiny.json"
+    assert main(["run", str(cfg), "--points", "12", "--out", "r1"]) == 0
+    first = json.loads((tmp_path / "r1" / "propagation_summary.json").read_text())
+    assert first["bs_to_ue"]["links"] == 36 and first["raytrace_stats"]["calls"] > 0
+    assert main(["run", str(cfg), "--points", "12", "--out", "r2"]) == 0
+    second = json.loads((tmp_path / "r2" / "propagation_summary.json").read_text())
+    assert second["raytrace_stats"]["calls"] == 0  # everything came from the cache
+    assert second["bs_to_ue"] == first["bs_to_ue"]
+    run = json.loads((tmp_path / "r1" / "run.json").read_text())
+    assert run["seed"] == 3 and run["versions"]["sionna-rt"].startswith("2.2")
+    out = capsys.readouterr().out
+    assert "bs_to_ue" in out and "with path" in out
+
+
+def test_run_uma(tmp_path):
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps({"propagation": {"model": "uma"}, "trajectory": {"num_points": 20}}))
+    assert main(["run", str(cfg), "--out", str(tmp_path / "r")]) == 0
+    s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
+    assert s["bs_to_ue"]["links_with_path_pct"] == 100.0
+
+
+@pytest.mark.raytrace
+def test_run_external_scene_with_csv(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    cfg = json.loads((ROOT / "configs" / "external-mini.json").read_text())
+    cfg["scene"]["source"] = str(ROOT / "scenes" / "mini_canyon" / "scene.xml")
+    cfg["trajectory"] = {"source": str(ROOT / "scenes" / "mini_canyon" / "trajectory.csv"),
+                         "num_points": 8}
+    cfg["propagation"]["raytrace"]["rays_per_source"] = 3000
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps(cfg))
+    assert main(["run", str(f), "--out", "r"]) == 0
+    s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
+    assert s["num_points"] == 8 and s["num_buildings"] is None and s["num_triangles"] > 100
+    assert s["bs_to_ue"]["links_with_path_pct"] > 50
