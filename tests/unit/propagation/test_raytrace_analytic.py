@@ -114,26 +114,43 @@ def test_single_wall_reflection_matches_image_method(tracer_factory):
     assert p["phi_r"][1] == pytest.approx(np.arctan2(u[1], u[0]), abs=ANGLE_TOL_RAD)
 
 
-def test_batched_receivers_match_one_receiver_per_call(tracer_factory):
+STREET_UES = np.array([[0.0, y, 1.5] for y in (-20.0, -5.0, 10.0, 25.0)])
+STREET_BSS = np.array([[150.0, 40.0, 25.0], [-120.0, -90.0, 25.0]])
+
+
+def _same_paths(a, row_a, b, row_b, what):
+    va, vb = a.valid[row_a], b.valid[row_b]
+    ta, tb = np.sort(a.tau[row_a][va]), np.sort(b.tau[row_b][vb])
+    assert len(ta) == len(tb) > 0, f"{what}: same number of paths"
+    assert np.allclose(ta, tb, atol=DELAY_TOL_S)
+    pa, pb = np.sort(np.abs(a.a[row_a][va]) ** 2), np.sort(np.abs(b.a[row_b][vb]) ** 2)
+    assert np.allclose(pa, pb, rtol=1e-4)
+
+
+@pytest.fixture(scope="module")
+def street(tracer_factory):
     # two blocks and a ground: LoS, reflections and diffraction to receivers in the street
-    meshes = {"ground": ground(), "blocks": boxes([[2.5, -30, 32.5, 30], [-32.5, -30, -2.5, 30]],
-                                                  [15.0, 12.0])}
-    tr = tracer_factory("street", meshes)
+    return tracer_factory("street", {"ground": ground(), "blocks": boxes(
+        [[2.5, -30, 32.5, 30], [-32.5, -30, -2.5, 30]], [15.0, 12.0])})
+
+
+def test_batched_sources_match_one_source_per_call(street):
+    """Reciprocal mode: many UE positions as sources in one call, each to all serving BSs."""
     fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False)
-    src = np.array([[0.0, y, 1.5] for y in (-20.0, -5.0, 10.0, 25.0)])
-    bs = np.array([[150.0, 40.0, 25.0], [-120.0, -90.0, 25.0]])
-    batched = tr.trace(src, bs, fid, 20_000)
-    for i in range(len(src)):
-        single = tr.trace(src[i:i + 1], bs, fid, 20_000)
-        for j in range(len(bs)):
-            b_row = i * len(bs) + j
-            vb, vs = batched.valid[b_row], single.valid[j]
-            tb, ts = np.sort(batched.tau[b_row][vb]), np.sort(single.tau[j][vs])
-            assert len(tb) == len(ts) > 0, f"link {i}->{j}: same number of paths"
-            assert np.allclose(tb, ts, atol=DELAY_TOL_S)
-            pb = np.sort(np.abs(batched.a[b_row][vb]) ** 2)
-            ps = np.sort(np.abs(single.a[j][vs]) ** 2)
-            assert np.allclose(pb, ps, rtol=1e-4)
+    batched = street.trace(STREET_UES, STREET_BSS, fid, 20_000)
+    for i in range(len(STREET_UES)):
+        single = street.trace(STREET_UES[i:i + 1], STREET_BSS, fid, 20_000)
+        for j in range(len(STREET_BSS)):
+            _same_paths(batched, i * len(STREET_BSS) + j, single, j, f"link {i}->{j}")
+
+
+def test_batched_receivers_match_one_receiver_per_call(street):
+    """Forward mode: one BS source, many UE receivers in one call."""
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False)
+    batched = street.trace(STREET_BSS[:1], STREET_UES, fid, 200_000)
+    for i in range(len(STREET_UES)):
+        single = street.trace(STREET_BSS[:1], STREET_UES[i:i + 1], fid, 200_000)
+        _same_paths(batched, i, single, 0, f"receiver {i}")
 
 
 class _Direct:
