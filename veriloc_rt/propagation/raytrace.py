@@ -76,15 +76,15 @@ def _unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plan_calls(src_id: np.ndarray, dst_id: np.ndarray, per_pair_work: int,
-               work_per_call: int, max_sources: int = 400, max_targets: int = 4) -> list[np.ndarray]:
+               work_per_call: int, max_sources: int = 400,
+               min_efficiency: float = 0.25) -> list[np.ndarray]:
     """Split links (in the given order) into PathSolver calls.
 
     A call traces every one of its sources to every one of its targets, so its work is
-    ``per_pair_work * num_sources * num_targets``; links are added while that stays within
-    ``work_per_call``, and while a call has at most ``max_targets`` targets (more only when one
-    source needs them): every source costs ``rays x num_targets``, so a call of point-to-point
-    links (adversary -> UE) must stay small, while consecutive UE points with the same serving
-    BSs share one call.
+    ``per_pair_work * num_sources * num_targets``. Links are added while that stays within
+    ``work_per_call`` and while at least ``min_efficiency`` of the traced pairs are wanted:
+    consecutive UE points with the same serving BSs (or one BS and many UEs) share a call, while
+    point-to-point links (adversary -> UE) go in small calls of at most 1/min_efficiency links.
 
     :returns: list of index arrays into the links
     """
@@ -92,7 +92,7 @@ def plan_calls(src_id: np.ndarray, dst_id: np.ndarray, per_pair_work: int,
     for i, (s, d) in enumerate(zip(src_id.tolist(), dst_id.tolist())):
         ns, nd = len(srcs | {s}), len(dsts | {d})
         if cur and (per_pair_work * ns * nd > work_per_call or ns > max_sources
-                    or nd > max(max_targets, len(dsts))):
+                    or (len(cur) + 1) < min_efficiency * ns * nd):
             calls.append(np.array(cur))
             cur, srcs, dsts = [], set(), set()
         cur.append(i)

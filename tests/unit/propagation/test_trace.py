@@ -24,9 +24,12 @@ def test_plan_calls_bounds_work_and_targets():
     assert sum(len(c) for c in calls) == 30
     for c in calls:
         assert len(set(src[c])) * len(set(dst[c])) * 10 <= 300
-    # point-to-point links: at most max_targets sources and targets per call
-    calls = plan_calls(np.arange(10), np.arange(10), 1, 10**9, max_targets=4)
+    # point-to-point links: a call of n links traces n x n pairs; efficiency >= 1/4 -> n <= 4
+    calls = plan_calls(np.arange(10), np.arange(10), 1, 10**9, min_efficiency=0.25)
     assert [len(c) for c in calls] == [4, 4, 2]
+    # one source (a BS, forward mode) to many targets: all pairs wanted, one call
+    calls = plan_calls(np.zeros(50, int), np.arange(50), 1, 10**9)
+    assert len(calls) == 1
 
 
 @pytest.mark.raytrace
