@@ -18,9 +18,17 @@ fi
 "$PY" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' \
   || { echo "setup: $PY is $("$PY" -V 2>&1); veriloc-rt needs Python >= 3.11" >&2; exit 1; }
 
+have_llvm() {
+  # the package finds libLLVM >= 19 by itself; this only decides whether to install it
+  local f
+  for f in /usr/lib/*/libLLVM-{19,2[0-9]}.so* /usr/lib/*/libLLVM.so.{19,2[0-9]}* \
+           /usr/lib/llvm-{19,2[0-9]}/lib/libLLVM*.so*; do
+    [ -e "$f" ] && return 0
+  done
+  [ -n "${DRJIT_LIBLLVM_PATH:-}" ] && [ -e "$DRJIT_LIBLLVM_PATH" ]
+}
 apt_pkgs=()
-if ! ls /usr/lib/*/libLLVM-19.so* /usr/lib/*/libLLVM.so.19* /usr/lib/llvm-19/lib/libLLVM*.so* \
-     >/dev/null 2>&1; then
+if ! have_llvm; then
   apt_pkgs+=(libllvm19)
 fi
 if [ ! -x .venv/bin/python ] && ! "$PY" -c 'import ensurepip, venv' >/dev/null 2>&1; then
