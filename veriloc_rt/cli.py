@@ -104,6 +104,27 @@ def cmd_scene(args) -> int:
     return 0
 
 
+def cmd_keys(args) -> int:
+    import tempfile
+
+    from .scenario import build_geometry
+    from .security.keys import generate_keys
+
+    cfg = _load(args.config)
+    if args.num_bs is not None:
+        if args.num_bs < 1:
+            raise InputError("--num-bs", f"got {args.num_bs}, expected an integer >= 1")
+        num_bs = args.num_bs
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            num_bs = len(build_geometry(cfg, tmp).bs_pos)
+    files = generate_keys(args.out, range(num_bs), aes_bits=cfg.security.aes_key_bits,
+                          overwrite=args.force)
+    print(f"wrote {len(files)} key files for BSs 0..{num_bs - 1} into {args.out}; "
+          f'set "security": {{"keys_dir": "{args.out}"}} to use them')
+    return 0
+
+
 def cmd_config(args) -> int:
     from .config import config_schema, config_to_dict
 
@@ -128,6 +149,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("config", nargs="?", help="JSON config file")
     s.add_argument("--out", required=True, help="output folder")
     s.set_defaults(func=cmd_scene)
+    k = sub.add_parser("keys", help="generate key files (AES, HMAC, Ed25519) for every BS")
+    k.add_argument("config", nargs="?", help="JSON config file (decides how many BSs)")
+    k.add_argument("--out", required=True, help="output folder")
+    k.add_argument("--num-bs", type=int, help="number of BSs (default: those the config uses)")
+    k.add_argument("--force", action="store_true", help="overwrite existing key files")
+    k.set_defaults(func=cmd_keys)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
     c.add_argument("action", choices=("schema", "show"))
     c.add_argument("config", nargs="?", help="JSON config file (for show)")

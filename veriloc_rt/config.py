@@ -14,6 +14,8 @@ from typing import Any
 
 from .configtools import from_dict, json_schema, param, section, to_dict
 from .errors import InputError, bad_value
+from .nr.config import NRConfig
+from .security.config import SecurityConfig
 
 
 @dataclass(frozen=True)
@@ -153,6 +155,13 @@ class Config:
     topology: TopologyConfig = section(TopologyConfig, "BS layout")
     trajectory: TrajectoryConfig = section(TrajectoryConfig, "UE and adversary paths")
     propagation: PropagationConfig = section(PropagationConfig, "propagation model")
+    nr: NRConfig = section(NRConfig, "NR PRS waveform and OFDM sampling (TS 38.211)")
+    security: SecurityConfig = section(SecurityConfig, "PRS encryption and authentication tags")
+
+    def validate(self, path: str) -> None:
+        if len(self.security.encrypted) != self.nr.num_bs:
+            raise bad_value("security.encrypted", list(self.security.encrypted),
+                            f"{self.nr.num_bs} flags, one per serving BS of nr.comb_offsets")
 
     def replace(self, **changes: Any) -> "Config":
         """Copy with top-level fields changed (``seed=...``)."""
@@ -186,12 +195,14 @@ def load_config(path: str | Path | None) -> Config:
 
 
 def _resolve_paths(cfg: Config, base: Path) -> Config:
-    scene, traj = cfg.scene, cfg.trajectory
+    scene, traj, sec = cfg.scene, cfg.trajectory, cfg.security
     if not scene.is_canyon and not Path(scene.source).is_absolute():
         scene = dataclasses.replace(scene, source=str((base / scene.source).resolve()))
     if traj.source != "generator" and not Path(traj.source).is_absolute():
         traj = dataclasses.replace(traj, source=str((base / traj.source).resolve()))
-    return dataclasses.replace(cfg, scene=scene, trajectory=traj)
+    if sec.keys_dir and not Path(sec.keys_dir).is_absolute():
+        sec = dataclasses.replace(sec, keys_dir=str((base / sec.keys_dir).resolve()))
+    return dataclasses.replace(cfg, scene=scene, trajectory=traj, security=sec)
 
 
 def config_to_dict(cfg: Config) -> dict:

@@ -72,6 +72,10 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     out = Path(out_dir) if out_dir is not None else None
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
     geometry = build_geometry(cfg, scene_dir)
+    if cfg.security.keys_dir:  # bad key files fail now, before any tracing
+        from .security.keys import load_keys
+
+        load_keys(cfg.security.keys_dir, range(len(geometry.bs_pos)))
     timing["geometry"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     prop = compute_propagation(cfg, geometry, progress)

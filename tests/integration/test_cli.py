@@ -54,3 +54,21 @@ def test_config_schema_and_show():
     assert r.returncode == 0 and json.loads(r.stdout)["additionalProperties"] is False
     r = cli("config", "show", ROOT / "configs" / "ci-tiny.json")
     assert r.returncode == 0 and json.loads(r.stdout)["trajectory"]["num_points"] == 40
+
+
+def test_keys_generate_refuse_overwrite_and_bad_key_file(tmp_path):
+    keys = tmp_path / "keys"
+    r = cli("keys", "--out", keys, "--num-bs", "3")
+    assert r.returncode == 0, r.stderr
+    assert len(list(keys.iterdir())) == 12  # AES, HMAC, Ed25519 private + public per BS
+    r = cli("keys", "--out", keys, "--num-bs", "3")
+    assert r.returncode == 2 and "refusing to overwrite" in r.stderr
+    # a run whose key folder lacks BSs or holds a malformed key stops before tracing
+    (keys / "bs1.tag.hmac").write_text("not hex\n")
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps({"security": {"keys_dir": str(keys)},
+                             "trajectory": {"num_points": 5}}))
+    r = cli("run", f, "--out", tmp_path / "out")
+    assert r.returncode == 2
+    line = r.stderr.strip().splitlines()
+    assert len(line) == 1 and line[0].startswith("error: ") and "bs" in line[0]
