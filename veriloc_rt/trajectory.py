@@ -19,6 +19,7 @@ from .errors import InputError, bad_value
 _DIRS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # E, N, W, S
 _TURN_SPEED = 4.0  # m/s through a corner (about 15 km/h)
 _DS = 0.25  # m, arc-length step of the kinematic integration
+_STOP_LINE = 6.0  # m before the intersection centre where a stopping vehicle waits
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,7 +89,8 @@ def generate_street_trajectory(cfg: TrajectoryConfig, canyon, rng: np.random.Gen
     Route: from the intersection nearest the origin, at each intersection go straight or turn
     (``turn_probability``), staying inside ``region_m``. Speed: a cruise speed per block drawn in
     [min_speed, max_speed], at most 4 m/s through turns, full stops (``stop_probability``, dwell
-    up to ``max_stop_s``) at intersections, acceleration and braking limited to ``accel_mps2``.
+    up to ``max_stop_s``) at the stop line 6 m before an intersection, acceleration and braking
+    limited to ``accel_mps2``.
     """
     pitch = canyon.pitch
     nodes = canyon.street_nodes(cfg.region_m)
@@ -133,7 +135,10 @@ def generate_street_trajectory(cfg: TrajectoryConfig, canyon, rng: np.random.Gen
     node_idx = np.round(np.arange(n_nodes) * pitch / _DS).astype(int)
     node_idx = np.minimum(node_idx, len(s_grid) - 1)
     vmax[node_idx[np.array(turns)]] = np.minimum(vmax[node_idx[np.array(turns)]], _TURN_SPEED)
-    vmax[node_idx[stops]] = 0.0
+    # a stopping vehicle waits at the stop line, short of the intersection (not at the start)
+    stop_idx = node_idx.copy()
+    stop_idx[1:] = np.maximum(node_idx[1:] - int(round(_STOP_LINE / _DS)), 0)
+    vmax[stop_idx[stops]] = 0.0
     # acceleration limits: forward then backward pass on v^2
     v2 = vmax ** 2
     for i in range(1, len(v2)):
@@ -145,7 +150,7 @@ def generate_street_trajectory(cfg: TrajectoryConfig, canyon, rng: np.random.Gen
     dt_steps = _DS / vmid
     # dwell times are added on arrival at a stop node
     arrive_dwell = np.zeros(len(s_grid))
-    arrive_dwell[node_idx[stops]] = dwell[stops]
+    arrive_dwell[stop_idx[stops]] = dwell[stops]
     t_grid = np.concatenate([[0.0], np.cumsum(dt_steps)]) + np.cumsum(arrive_dwell)
     # time -> arc length: during a dwell t advances while s stays (duplicate s entries)
     t_aug = np.concatenate([t_grid - arrive_dwell, t_grid])
