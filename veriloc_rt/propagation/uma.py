@@ -108,9 +108,9 @@ def uma_cir(tx_pos, rx_pos, rx_vel, tx_vel, tx_index, fc_hz: float, element_pos,
     element_pos = _as_array("element_pos", element_pos, (3,), 2)
     if not np.all(np.isfinite(tx_raw[ok])):
         raise ValueError("Argument `tx_pos` must be finite in every slot with tx_index >= 0")
-    # empty slots: harmless placeholder geometry, masked at the end
-    placeholder = rx_pos[:, None, :] + np.array([100.0, 0.0, 23.5])
-    tx = np.where(ok[..., None], tx_raw, placeholder)
+    # empty slots: harmless stand-in geometry, masked at the end
+    stand_in = rx_pos[:, None, :] + np.array([100.0, 0.0, 23.5])
+    tx = np.where(ok[..., None], tx_raw, stand_in)
     if np.any(tx[..., 2] <= 1.0) or np.any(rx_pos[:, 2] <= 1.0):
         raise ValueError("Arguments `tx_pos`, `rx_pos`: antenna heights (z) must be > 1 m "
                          "(h_E of Table 7.4.1-1)")

@@ -85,7 +85,7 @@ def draw_link_parameters(tx_pos: np.ndarray, rx_pos: np.ndarray, tx_index: np.nd
     """Draw LoS states, path loss and correlated LSPs for every link slot (7.5 steps 2-4).
 
     Heights are the z coordinates (ground at z = 0). Slots with ``tx_index < 0`` get values
-    computed for a placeholder geometry; callers mask them.
+    computed for a stand-in geometry; callers mask them.
 
     :param tx_pos: [num_points, num_tx, 3] float64, m
     :param rx_pos: [num_points, 3] float64, m

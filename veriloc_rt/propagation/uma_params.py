@@ -131,7 +131,7 @@ def lsp_statistics(los: bool, fc_hz: float, d_2d_m, h_ut_m) -> tuple[np.ndarray,
     """Mean and standard deviation of the seven LSPs in :data:`LSP_ORDER` (Tables 7.5-6/7.5-7).
 
     SF and K are in dB; DS, ASD, ASA, ZSD, ZSA in lg units (DS in s, angles in deg). For NLoS
-    the K entries are placeholders (0, 0): K does not exist there.
+    the K entries are unused zeros (0, 0): K does not exist there.
 
     :param d_2d_m, h_ut_m: [L] float64, m (ZSD depends on them)
     :returns: (mu, sigma), each [L, 7] float64
@@ -190,7 +190,7 @@ def correlation_matrix(los: bool) -> np.ndarray:
 def decorrelation_distances_m(los: bool) -> np.ndarray:
     """Decorrelation distances of the LSPs in :data:`LSP_ORDER` (Table 7.5-6).
 
-    :returns: [7] float64, m (K for NLoS: 1 m placeholder, unused)
+    :returns: [7] float64, m (K for NLoS: 1 m, unused)
     """
     dd = uma_table()["lsp"]["los" if los else "nlos"]["decorrelation_m"]
     return np.array([float(dd.get(n, 1.0)) for n in LSP_ORDER])
