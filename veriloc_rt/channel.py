@@ -184,7 +184,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     t = symbol_times(ofdm, slots, t0)
     h = frequency_response(links, subcarrier_frequencies(ofdm), t.ravel(), t0)
     h = h.reshape(links.num_links, links.num_ant, *t.shape, ofdm.num_subcarriers)
-    return np.einsum("l,lastk,lstk->astk", np.asarray(amplitudes, dtype=float), h, grids)
+    out = np.zeros(h.shape[1:], dtype=np.complex128)
+    for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
+        out += amp * h[li] * grids[li][None]
+    return out
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,

@@ -90,6 +90,11 @@ def _parabola(ym: float, y0: float, yp: float) -> float:
     return float(np.clip(0.5 * (ym - yp) / den, -1.0, 1.0))
 
 
+def _combine(rot: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """sum_b rot_b S_abk: [B], [A, B, K] -> [A, K]."""
+    return (rot[None, None, :] @ s)[:, 0, :]
+
+
 class ToAEstimator:
     """Doppler, ToA and hearability of one transmitter from its :class:`CrossSpectra`.
 
@@ -145,7 +150,8 @@ class ToAEstimator:
         if cfg.doppler_max_hz > 0:
             nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
             rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])             # [V, B]
-            g_nu = np.einsum("vb,abk->vak", rot, s)
+            a_, b_, k_ = s.shape
+            g_nu = (rot @ s.transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
             metric = np.sum(np.abs(self._profiles(g_nu, idx, lags, n_up)) ** 2, axis=1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
@@ -155,11 +161,11 @@ class ToAEstimator:
             nu = 0.0
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
-        g = np.einsum("b,abk->ak", rot, s)
+        g = _combine(rot, s)
         prof = self._profiles(g, idx, lags, n_up)
         m_rect = np.sum(np.abs(prof) ** 2, axis=0)
         tau_pk = float(lags[int(np.argmax(m_rect))] * step)
-        x = np.einsum("abk,k->ab", s, np.exp(2j * np.pi * cs.freqs * tau_pk)) * rot  # [A, B]
+        x = (s @ np.exp(2j * np.pi * cs.freqs * tau_pk)) * rot                    # [A, B]
         ref = np.sum(x, axis=1)
         z = np.sum(x * np.conj(ref)[:, None], axis=0)                              # [B]
         w = np.abs(z)
@@ -171,7 +177,7 @@ class ToAEstimator:
             if abs(dnu) <= cfg.doppler_step_hz:
                 nu += dnu
                 rot = np.exp(-2j * np.pi * nu * tc)
-                g = np.einsum("b,abk->ak", rot, s)
+                g = _combine(rot, s)
                 prof = self._profiles(g, idx, lags, n_up)
                 m_rect = np.sum(np.abs(prof) ** 2, axis=0)
         # 3. detection against the exact noise floor
@@ -207,7 +213,7 @@ class ToAEstimator:
             tau += h * _parabola(*vals)
             h /= 4
         pk = self._eval(g, cs.freqs, tau)
-        snaps = np.einsum("abk,k->ab", s, np.exp(2j * np.pi * cs.freqs * tau)) * rot
+        snaps = (s @ np.exp(2j * np.pi * cs.freqs * tau)) * rot
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db), peak=pk,
                            snapshots=snaps, noise_var=nv)

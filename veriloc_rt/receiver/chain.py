@@ -1,0 +1,258 @@
+"""The per-point positioning chain: transmit, channel, receive, locate, authenticate.
+
+:class:`PositioningChain` is configured once (waveform, security, channel and receiver configs,
+the UE array, the serving BSs and their keys) and called per trajectory point with that point's
+CIRs. It works the same on ray-traced and UMa CIRs (both are :class:`CIR`):
+
+1. the serving BSs' frame (PRS, encryption, tags; cached per frame counter) and the optional
+   adversary signal go through their links (:mod:`veriloc_rt.channel`): power control, Doppler,
+   thermal noise, in the frequency domain (fast) or the time domain (reference);
+2. per BS: cross-spectra with the local replica, Doppler scan, ToA, hearability
+   (:mod:`~veriloc_rt.receiver.sync`, :mod:`~veriloc_rt.receiver.toa`); RSTDs against BS 0;
+3. the DL fix (:class:`Multilaterator`), the per-BS AoA (:class:`AoAEstimator`, ambiguity
+   resolved against the caller's reference azimuths), the tags (:class:`TagVerifier`, on the
+   antenna-combined grid) and the UL fix (:class:`UplinkPositioner`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt,
+                       equal_arrival_powers, re_amplitude, thermal_noise_variance, timing_reference)
+from ..channel_config import ChannelConfig, ReceiverConfig
+from ..config import ArrayConfig
+from ..constants import SPEED_OF_LIGHT
+from ..nr.config import NRConfig
+from ..nr.transmitter import PRSTransmitter
+from ..propagation.cir import CIR, ula_element_positions
+from ..security.config import SecurityConfig
+from ..security.keys import BSKeys
+from ..security.tag_receiver import TagVerifier
+from .aoa import AoAEstimate, AoAEstimator
+from .multilateration import MultilaterationResult, Multilaterator
+from .sync import frequency_cross_spectra, noise_variance, time_cross_spectra
+from .toa import ToAEstimate, ToAEstimator
+from .uplink import UplinkPositioner, UplinkResult
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ChainResult", "PositioningChain"]
+
+
+@dataclass(frozen=True, eq=False)
+class ChainResult:
+    """Everything the detectors need from one trajectory point.
+
+    detected : [num_bs] bool, BS heard (peak above the hearability threshold)
+    toa_s : [num_bs] float64, s, absolute arrival time (the receiver's timing reference t0 plus
+        the estimated lag; NaN where not detected); only differences are meaningful
+    rstd_s : [num_bs] float64, s, toa_i - toa_0 (NaN where not detected)
+    doppler_hz, peak_snr_db : [num_bs] float64, Hz and dB
+    position : MultilaterationResult, the DL fix
+    aoa : list of AoAEstimate or None (None: not detected)
+    azimuth : [num_bs] float64, rad, AoA resolved against the reference (NaN without one)
+    tags_valid : [num_bs] bool, every checked tag of the BS verified (False if the scheme is
+        'none' or the BS was not detected); tags_checked : bool, the scheme is not 'none'
+    uplink : UplinkResult or None
+    tx_power_w : [num_bs] float64, W, the serving BSs' powers after power control
+    timing_reference_s : float, s, t0
+    toa_estimates : list of ToAEstimate (per BS, raw)
+    """
+
+    detected: np.ndarray
+    toa_s: np.ndarray
+    rstd_s: np.ndarray
+    doppler_hz: np.ndarray
+    peak_snr_db: np.ndarray
+    position: MultilaterationResult
+    aoa: list
+    azimuth: np.ndarray
+    tags_valid: np.ndarray
+    tags_checked: bool
+    uplink: UplinkResult | None
+    tx_power_w: np.ndarray
+    timing_reference_s: float
+    toa_estimates: list
+
+
+class PositioningChain:
+    """Transmitters, channel and receiver of one run, called per trajectory point.
+
+    :param nr: waveform config; security: encryption and tags; channel, receiver: this module's
+    :param ue_array: the UE's ULA (number of elements, spacing, axis azimuth)
+    :param carrier_frequency_hz: float, Hz
+    :param bs_ids: identity of the BS in each serving slot (slot 0: RSTD reference)
+    :param keys: by BS id, for encryption and tags (None if neither is used)
+    """
+
+    def __init__(self, nr: NRConfig, security: SecurityConfig, channel: ChannelConfig,
+                 receiver: ReceiverConfig, ue_array: ArrayConfig, carrier_frequency_hz: float,
+                 bs_ids: Sequence[int], keys: Mapping[int, BSKeys] | None = None):
+        self.nr, self.security, self.channel, self.receiver = nr, security, channel, receiver
+        self.tx = PRSTransmitter(nr, security, bs_ids, keys)
+        self.ofdm = self.tx.ofdm
+        self.slots = range(nr.slots_per_frame)
+        self.verifier = (TagVerifier(nr, security, bs_ids, keys) if security.tag_scheme != "none" else None)
+        if any(s >= nr.slots_per_frame for s in receiver.tag_slots):
+            raise ValueError(f"receiver.tag_slots {receiver.tag_slots} exceed nr.slots_per_frame "
+                             f"{nr.slots_per_frame}")
+        wavelength = SPEED_OF_LIGHT / carrier_frequency_hz
+        self.element_pos = ula_element_positions(ue_array.num_elements,
+                                                 ue_array.spacing_wavelengths * wavelength,
+                                                 np.deg2rad(ue_array.axis_azimuth_deg))
+        self.aoa = AoAEstimator(receiver.aoa_method, receiver.aoa_num_sources or None,
+                                ue_array.spacing_wavelengths, np.deg2rad(ue_array.axis_azimuth_deg))
+        self.toa = ToAEstimator(receiver, channel.timing_guard_s)
+        self.uplink = UplinkPositioner(nr, channel, receiver) if receiver.uplink else None
+        fs = self.ofdm.sample_rate_hz
+        self.noise_var = thermal_noise_variance(fs, channel.ue_noise_figure_db) if channel.noise else 0.0
+        self.frame_samples = self.ofdm.num_samples(self.slots)
+        self.buffer_samples = self.frame_samples + int(np.ceil(receiver.search_window_s * fs)) + 64
+        self.busy_symbols = tuple(int(l) for l in nr.prs_symbols)
+        self._frame: tuple | None = None
+
+    @property
+    def num_bs(self) -> int:
+        return self.tx.num_bs
+
+    # -- per-frame cache -------------------------------------------------------------------
+    def frame_signals(self, frame: int, encrypted_replica: bool | None = None) -> dict:
+        """Grids, waveforms (time domain) and replicas of one frame (cached for the last frame)."""
+        key = (frame, encrypted_replica)
+        if self._frame is None or self._frame[0] != key:
+            grids = self.tx(frame, self.slots)
+            wave = self.ofdm.modulate(grids, self.slots) if self.channel.domain == "time" else None
+            reps = [self.tx.replica(b, frame, self.slots, encrypted_replica) for b in range(self.num_bs)]
+            self._frame = (key, {"grids": grids, "waveform": wave, "replicas": reps})
+        return self._frame[1]
+
+    # -- stages ----------------------------------------------------------------------------
+    def _receive(self, links: Links, amps: np.ndarray, sig: dict, t0: float, adv: Links | None,
+                 adv_signal: np.ndarray | None, rng: np.random.Generator):
+        """Received (grid [A, S, 14, K], IQ [A, N] or None)."""
+        adv_amp = re_amplitude([dbm_to_watt(self.channel.adversary_power_dbm)], self.ofdm)
+        fs = self.ofdm.sample_rate_hz
+        if self.channel.domain == "frequency":
+            y = apply_frequency(links, sig["grids"], amps, self.ofdm, self.slots, t0)
+            if adv is not None:
+                if adv_signal.ndim == 3:
+                    y = y + apply_frequency(adv, adv_signal[None], adv_amp, self.ofdm, self.slots, t0)
+                else:
+                    iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples)
+                    y = y + self.ofdm.demodulate(iq, self.slots)
+            return add_noise(y, self.noise_var, rng), None
+        iq = apply_time(links, sig["waveform"], amps, fs, t0, self.buffer_samples)
+        if adv is not None:
+            wave = self.ofdm.modulate(adv_signal, self.slots) if adv_signal.ndim == 3 else adv_signal
+            iq = iq + apply_time(adv, wave[None], adv_amp, fs, t0, self.buffer_samples)
+        iq = add_noise(iq, self.noise_var, rng)
+        return self.ofdm.demodulate(iq, self.slots), iq
+
+    def _tags(self, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int) -> bool:
+        w = np.conj(est.peak)
+        nrm = np.linalg.norm(w)
+        w = w / nrm if nrm > 0 else np.ones_like(w) / np.sqrt(w.size)
+        for s in self.receiver.tag_slots:
+            combined = np.tensordot(w, grid[:, s], axes=(0, 0))
+            if not self.verifier(combined, bs, frame, int(self.slots[s])):
+                return False
+        return True
+
+    def _zenith(self, bs_pos: np.ndarray, fix: MultilaterationResult) -> np.ndarray:
+        """Zenith of arrival from each BS seen from the DL fix (pi/2 without a fix)."""
+        if not fix.ok:
+            return np.full(len(bs_pos), np.pi / 2)
+        d = bs_pos - fix.position[None, :]
+        return np.arccos(np.clip(d[:, 2] / np.linalg.norm(d, axis=1), -1.0, 1.0))
+
+    # -- main ------------------------------------------------------------------------------
+    def __call__(self, bs_ue: CIR, point: int, rng: np.random.Generator, *, frame: int = 0,
+                 adv_ue: CIR | None = None, adversary_signal: np.ndarray | None = None,
+                 reference_azimuth=None, zenith=None, encrypted_replica: bool | None = None) -> ChainResult:
+        """Run the chain on trajectory point ``point``.
+
+        :param bs_ue: CIR [num_points, num_bs] serving BS -> UE (slot 0 = reference)
+        :param rng: numpy Generator for the noise (always explicit)
+        :param frame: 32-bit frame counter (PRS encryption, tags)
+        :param adv_ue: CIR [num_points, 1] adversary -> UE; used with ``adversary_signal``
+        :param adversary_signal: what the adversary transmits, in the unit-RE normalisation of the
+            BSs' grids: a grid [num_slots, 14, num_subcarriers] aligned with the frame, or IQ
+            [num_samples] complex at ``nr.resolved_sample_rate_hz`` starting at t = 0
+        :param reference_azimuth: [num_bs] float64, rad, resolves the ULA mirror ambiguity
+        :param zenith: [num_bs] float64, rad, known zenith of arrival (None: from the DL fix)
+        :param encrypted_replica: None: each BS's own setting; True/False: force the replica
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
+        if bs_ue.num_tx != self.num_bs or bs_ue.num_ant != self.element_pos.shape[0]:
+            raise ValueError(f"Argument `bs_ue` must have {self.num_bs} link slots and "
+                             f"{self.element_pos.shape[0]} antennas, not {bs_ue.num_tx} and {bs_ue.num_ant}")
+        if not 0 <= point < bs_ue.num_points:
+            raise ValueError(f"Argument `point` must be in [0, {bs_ue.num_points}), not {point}")
+        adv = None
+        if adversary_signal is not None:
+            if adv_ue is None:
+                raise ValueError("Argument `adv_ue` is needed with `adversary_signal`")
+            adversary_signal = np.asarray(adversary_signal)
+            adv = Links.from_cir(adv_ue, point)
+        sig = self.frame_signals(frame, encrypted_replica)
+        links = Links.from_cir(bs_ue, point)
+        powers = equal_arrival_powers(links.power_gain(), float(dbm_to_watt(self.channel.bs_max_power_dbm)),
+                                      self.channel.power_control)
+        amps = re_amplitude(powers, self.ofdm)
+        t0 = timing_reference(links, self.channel.timing_guard_s)
+        grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng)
+        nv = noise_variance(grid, self.busy_symbols)
+        nv = nv if np.isfinite(nv) else self.noise_var
+        ests = []
+        for b in range(self.num_bs):
+            if iq is None:
+                cs = frequency_cross_spectra(grid, sig["replicas"][b], self.ofdm, self.slots)
+            else:
+                cs = time_cross_spectra(iq, sig["replicas"][b], self.ofdm, self.slots,
+                                        self.channel.timing_guard_s, self.receiver.search_window_s)
+            ests.append((self.toa(cs, nv), cs))
+        det = np.array([e.detected for e, _ in ests])
+        toa = np.array([t0 + e.toa_s if e.detected else np.nan for e, _ in ests])
+        rstd = toa - toa[0]
+        bs_pos = bs_ue.tx_pos[point]
+        ue_h = float(bs_ue.rx_pos[point, 2])
+        solver = Multilaterator(ue_height_m=ue_h, max_residual_m=self.receiver.max_residual_m)
+        fix = solver(bs_pos, np.where(det, rstd, np.nan), 0, det)
+        zen = self._zenith(bs_pos, fix) if zenith is None else np.broadcast_to(np.asarray(zenith, float), (self.num_bs,))
+        aoas: list[AoAEstimate | None] = []
+        az = np.full(self.num_bs, np.nan)
+        for b, (e, cs) in enumerate(ests):
+            if not e.detected:
+                aoas.append(None)
+                continue
+            if self.receiver.aoa_snapshots == "peak":
+                snaps = e.snapshots
+            else:
+                rot = np.exp(-2j * np.pi * e.doppler_hz * (cs.block_times - cs.block_times.mean()))
+                x = cs.spectra * rot[None, :, None]
+                snaps = x[:, cs.ref_power > 0]
+            est = self.aoa(snaps, float(zen[b]))
+            aoas.append(est)
+            if reference_azimuth is not None:
+                ref = np.broadcast_to(np.asarray(reference_azimuth, dtype=float), (self.num_bs,))[b]
+                az[b] = float(est.resolve(ref)[0])
+        tags = np.zeros(self.num_bs, dtype=bool)
+        if self.verifier is not None:
+            for b, (e, _) in enumerate(ests):
+                tags[b] = e.detected and self._tags(grid, e, b, frame)
+        up = None
+        if self.uplink is not None:
+            up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)
+        log.debug("point %d: detected %s, fix %s", point, det, fix.status)
+        return ChainResult(detected=det, toa_s=toa, rstd_s=rstd,
+                           doppler_hz=np.array([e.doppler_hz for e, _ in ests]),
+                           peak_snr_db=np.array([e.peak_snr_db for e, _ in ests]), position=fix,
+                           aoa=aoas, azimuth=az, tags_valid=tags, tags_checked=self.verifier is not None,
+                           uplink=up, tx_power_w=powers, timing_reference_s=t0,
+                           toa_estimates=[e for e, _ in ests])
