@@ -31,7 +31,8 @@ SWEEP = [("forward", 100_000), ("forward", 300_000), ("forward", 1_000_000),
          ("reciprocal", 100_000), ("reciprocal", 300_000)]
 
 
-def one(direction: str, rays: int, points: int, depth: int, out: Path) -> None:
+def one(direction: str, rays: int, points: int, depth: int, out: Path,
+        candidates: int = 2000) -> None:
     """Trace in this process and save first-path delay/power per link to ``out``."""
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
@@ -40,7 +41,8 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path) -> None:
     cfg = config_from_dict({"trajectory": {"num_points": points},
                             "propagation": {"raytrace": {"direction": direction,
                                                          "rays_per_source": rays,
-                                                         "max_depth": depth}}})
+                                                         "max_depth": depth,
+                                                         "max_candidates_per_source": candidates}}})
     with tempfile.TemporaryDirectory() as tmp:
         geo = build_geometry(cfg, tmp)
         tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz,
@@ -68,10 +70,13 @@ def main() -> int:
     ap.add_argument("--depth", type=int, default=3, help="max_depth (default: the config's 3)")
     ap.add_argument("--only", help="settings, comma separated, e.g. reciprocal:10000,forward:1e6")
     ap.add_argument("--keep", help="folder to keep each setting's per-link results (.npz)")
+    ap.add_argument("--candidates", type=int, default=2000,
+                    help="raytrace.max_candidates_per_source (default 2000)")
     ap.add_argument("--_one", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._one:
-        one(args._one[0], int(args._one[1]), args.points, args.depth, Path(args._one[2]))
+        one(args._one[0], int(args._one[1]), args.points, args.depth, Path(args._one[2]),
+            args.candidates)
         return 0
     sweep = SWEEP if not args.only else [(o.split(":")[0], int(float(o.split(":")[1])))
                                          for o in args.only.split(",")]
@@ -81,7 +86,8 @@ def main() -> int:
             f = Path(args.keep or tmp) / f"{direction}_{rays}.npz"
             f.parent.mkdir(parents=True, exist_ok=True)
             subprocess.run([sys.executable, __file__, "--points", str(args.points), "--depth",
-                            str(args.depth), "--_one", direction, str(rays), str(f)], check=True)
+                            str(args.depth), "--candidates", str(args.candidates), "--_one",
+                            direction, str(rays), str(f)], check=True)
             with np.load(f) as d:
                 results[(direction, rays)] = {k: d[k] for k in d.files}
     recips = [r for d, r in results if d == "reciprocal"]

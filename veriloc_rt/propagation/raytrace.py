@@ -76,7 +76,7 @@ def _unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plan_calls(src_id: np.ndarray, dst_id: np.ndarray, per_pair_work: int,
-               work_per_call: int, max_sources: int = 400,
+               work_per_call: int, max_sources: int = 150,
                min_efficiency: float = 0.25) -> list[np.ndarray]:
     """Split links (in the given order) into PathSolver calls.
 
