@@ -65,8 +65,10 @@ class ReceiverConfig:
                                "first-path threshold", lo=1e-15, hi=0.1)
     first_path_rel_db: float = param(20.0, "first-path candidates must lie within this many dB "
                                      "of the strongest peak", lo=3.0, hi=60.0)
-    hearability_db: float = param(12.0, "a BS is detected when its correlation peak exceeds the "
-                                  "noise floor by this much", lo=0.0, hi=60.0)
+    hearability_db: float = param(8.0, "a BS is detected when its correlation peak exceeds the "
+                                  "noise floor (mean noise-only metric) by this much; 8 dB with 5 "
+                                  "antennas is a chi-square(10) tail of ~1e-9 per delay bin",
+                                  lo=0.0, hi=60.0)
     doppler_max_hz: float = param(400.0, "Doppler scan half-range (0 disables the scan)",
                                   lo=0.0, hi=5000.0)
     doppler_step_hz: float = param(25.0, "Doppler scan step (the frame's Doppler resolution is "

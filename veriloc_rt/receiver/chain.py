@@ -29,9 +29,10 @@ from ..config import ArrayConfig
 from ..constants import SPEED_OF_LIGHT
 from ..nr.config import NRConfig
 from ..nr.transmitter import PRSTransmitter
-from ..propagation.cir import CIR, ula_element_positions
+from ..nr.ofdm import OFDM
+from ..propagation.cir import CIR, NO_TX, ula_element_positions
 from ..security.config import SecurityConfig
-from ..security.keys import BSKeys
+from ..security.keys import BSKeys, make_keys
 from ..security.tag_receiver import TagVerifier
 from .aoa import AoAEstimate, AoAEstimator
 from .multilateration import MultilaterationResult, Multilaterator
@@ -42,6 +43,9 @@ from .uplink import UplinkPositioner, UplinkResult
 log = logging.getLogger(__name__)
 
 __all__ = ["ChainResult", "PositioningChain"]
+
+#: identities given to empty serving slots (top of the u32 range the tags carry)
+_DUMMY_ID = 0xFFFF_FF00
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,18 +90,22 @@ class PositioningChain:
     :param nr: waveform config; security: encryption and tags; channel, receiver: this module's
     :param ue_array: the UE's ULA (number of elements, spacing, axis azimuth)
     :param carrier_frequency_hz: float, Hz
-    :param bs_ids: identity of the BS in each serving slot (slot 0: RSTD reference)
-    :param keys: by BS id, for encryption and tags (None if neither is used)
+    :param keys: by BS id, for encryption and tags (None if neither is used). The serving BSs of
+        a point are the CIR's ``tx_index`` (slot 0: RSTD reference); a transmitter and tag
+        verifier are built per serving set and cached. An empty slot (``NO_TX``) transmits under
+        a dummy identity through a link without paths, i.e. nothing arrives.
     """
 
     def __init__(self, nr: NRConfig, security: SecurityConfig, channel: ChannelConfig,
                  receiver: ReceiverConfig, ue_array: ArrayConfig, carrier_frequency_hz: float,
-                 bs_ids: Sequence[int], keys: Mapping[int, BSKeys] | None = None):
+                 keys: Mapping[int, BSKeys] | None = None):
+        nr.validate()
+        security.validate()
         self.nr, self.security, self.channel, self.receiver = nr, security, channel, receiver
-        self.tx = PRSTransmitter(nr, security, bs_ids, keys)
-        self.ofdm = self.tx.ofdm
+        self.keys = dict(keys) if keys is not None else {}
+        self.ofdm = OFDM(nr)
         self.slots = range(nr.slots_per_frame)
-        self.verifier = (TagVerifier(nr, security, bs_ids, keys) if security.tag_scheme != "none" else None)
+        self._setups: dict[tuple, tuple] = {}
         if any(s >= nr.slots_per_frame for s in receiver.tag_slots):
             raise ValueError(f"receiver.tag_slots {receiver.tag_slots} exceed nr.slots_per_frame "
                              f"{nr.slots_per_frame}")
@@ -118,16 +126,32 @@ class PositioningChain:
 
     @property
     def num_bs(self) -> int:
-        return self.tx.num_bs
+        return self.nr.num_bs
 
-    # -- per-frame cache -------------------------------------------------------------------
-    def frame_signals(self, frame: int, encrypted_replica: bool | None = None) -> dict:
-        """Grids, waveforms (time domain) and replicas of one frame (cached for the last frame)."""
-        key = (frame, encrypted_replica)
+    # -- per serving set and per frame caches ----------------------------------------------
+    def setup(self, bs_ids: Sequence[int]) -> tuple[PRSTransmitter, TagVerifier | None]:
+        """Transmitter and tag verifier of a serving set (cached)."""
+        ids = tuple(int(b) for b in bs_ids)
+        if ids not in self._setups:
+            keys = dict(self.keys)
+            ids_tx = tuple(b if b != NO_TX else _DUMMY_ID + j for j, b in enumerate(ids))
+            for b in ids_tx:
+                if b >= _DUMMY_ID and self.keys:
+                    keys[b] = make_keys(b, rng=np.random.default_rng(b))
+            tx = PRSTransmitter(self.nr, self.security, ids_tx, keys or None)
+            ver = (TagVerifier(self.nr, self.security, ids_tx, keys)
+                   if self.security.tag_scheme != "none" else None)
+            self._setups[ids] = (tx, ver)
+        return self._setups[ids]
+
+    def frame_signals(self, bs_ids: Sequence[int], frame: int, encrypted_replica: bool | None = None) -> dict:
+        """Grids, waveforms (time domain) and replicas of one frame (the last one is cached)."""
+        key = (tuple(int(b) for b in bs_ids), frame, encrypted_replica)
         if self._frame is None or self._frame[0] != key:
-            grids = self.tx(frame, self.slots)
+            tx, _ = self.setup(bs_ids)
+            grids = tx(frame, self.slots)
             wave = self.ofdm.modulate(grids, self.slots) if self.channel.domain == "time" else None
-            reps = [self.tx.replica(b, frame, self.slots, encrypted_replica) for b in range(self.num_bs)]
+            reps = [tx.replica(b, frame, self.slots, encrypted_replica) for b in range(self.num_bs)]
             self._frame = (key, {"grids": grids, "waveform": wave, "replicas": reps})
         return self._frame[1]
 
@@ -153,13 +177,13 @@ class PositioningChain:
         iq = add_noise(iq, self.noise_var, rng)
         return self.ofdm.demodulate(iq, self.slots), iq
 
-    def _tags(self, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int) -> bool:
+    def _tags(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int) -> bool:
         w = np.conj(est.peak)
         nrm = np.linalg.norm(w)
         w = w / nrm if nrm > 0 else np.ones_like(w) / np.sqrt(w.size)
         for s in self.receiver.tag_slots:
             combined = np.tensordot(w, grid[:, s], axes=(0, 0))
-            if not self.verifier(combined, bs, frame, int(self.slots[s])):
+            if not verifier(combined, bs, frame, int(self.slots[s])):
                 return False
         return True
 
@@ -200,7 +224,9 @@ class PositioningChain:
                 raise ValueError("Argument `adv_ue` is needed with `adversary_signal`")
             adversary_signal = np.asarray(adversary_signal)
             adv = Links.from_cir(adv_ue, point)
-        sig = self.frame_signals(frame, encrypted_replica)
+        bs_ids = tuple(int(b) for b in bs_ue.tx_index[point])
+        _, verifier = self.setup(bs_ids)
+        sig = self.frame_signals(bs_ids, frame, encrypted_replica)
         links = Links.from_cir(bs_ue, point)
         powers = equal_arrival_powers(links.power_gain(), float(dbm_to_watt(self.channel.bs_max_power_dbm)),
                                       self.channel.power_control)
@@ -243,9 +269,9 @@ class PositioningChain:
                 ref = np.broadcast_to(np.asarray(reference_azimuth, dtype=float), (self.num_bs,))[b]
                 az[b] = float(est.resolve(ref)[0])
         tags = np.zeros(self.num_bs, dtype=bool)
-        if self.verifier is not None:
+        if verifier is not None:
             for b, (e, _) in enumerate(ests):
-                tags[b] = e.detected and self._tags(grid, e, b, frame)
+                tags[b] = e.detected and self._tags(verifier, grid, e, b, frame)
         up = None
         if self.uplink is not None:
             up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)
@@ -253,6 +279,6 @@ class PositioningChain:
         return ChainResult(detected=det, toa_s=toa, rstd_s=rstd,
                            doppler_hz=np.array([e.doppler_hz for e, _ in ests]),
                            peak_snr_db=np.array([e.peak_snr_db for e, _ in ests]), position=fix,
-                           aoa=aoas, azimuth=az, tags_valid=tags, tags_checked=self.verifier is not None,
+                           aoa=aoas, azimuth=az, tags_valid=tags, tags_checked=verifier is not None,
                            uplink=up, tx_power_w=powers, timing_reference_s=t0,
                            toa_estimates=[e for e, _ in ests])

@@ -198,7 +198,8 @@ class ToAEstimator:
             floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
             gamma = chi2.isf(cfg.false_alarm, 2 * a_n) / (2 * a_n)
             thr = max(gamma * floor, metric.max() * 10 ** (-cfg.first_path_rel_db / 10))
-            i = int(np.flatnonzero(metric >= thr)[0])
+            above = np.flatnonzero(metric >= thr)
+            i = int(above[0]) if above.size else int(np.argmax(metric))
             while i + 1 < metric.size and metric[i + 1] > metric[i]:
                 i += 1
         # 5. sub-sample refinement

@@ -1,0 +1,146 @@
+"""Benchmark of the per-point positioning chain (issue 4): speed and accuracy, default vs reference.
+
+1. Seconds per trajectory point of the full chain (3 BSs, HMAC tags, AoA, uplink) at the default
+   fidelity (frequency-domain channel and receiver, smallest sample rate) and at the reference
+   (time-domain IQ at 122.88 MHz), on the same CIRs and the same noise seeds; the DL position
+   deviation between the two (p50/p95).
+2. Benign DL and UL position error (p50/p95) of the default chain on TR 38.901 UMa
+   (pathloss_only and fast_fading) along a simple synthetic trajectory: 3 BSs at alternate
+   vertices of a hexagon (R = 289 m, 25 m high), the UE on a 100 m circle at 10 m/s.
+3. With ``--rt-cache``: the same on cached ray-traced CIRs of the default scenario (build them
+   first as described in the issue; this script never traces).
+
+BLAS is limited to one thread (as in the engine's one-process-per-core executors): on a shared
+2-core machine multithreaded BLAS on these small matrices is ~10x slower.
+
+Usage: python scripts/bench_chain.py [--uma-points 100] [--ref-points 5]
+           [--rt-cache /tmp/vcache --rt-scene /tmp/scene100 --rt-points 100]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from veriloc_rt.channel_config import ChannelConfig, ReceiverConfig  # noqa: E402
+from veriloc_rt.config import ArrayConfig  # noqa: E402
+from veriloc_rt.nr.config import NRConfig  # noqa: E402
+from veriloc_rt.propagation.cir import ula_element_positions  # noqa: E402
+from veriloc_rt.propagation.uma import uma_cir  # noqa: E402
+from veriloc_rt.receiver.chain import PositioningChain  # noqa: E402
+from veriloc_rt.security.config import SecurityConfig  # noqa: E402
+from veriloc_rt.security.keys import simulated_keys  # noqa: E402
+
+FC = 3.5e9
+SEED = 2024
+
+
+def synthetic_uma(num_points: int, mode: str, seed: int):
+    r = 289.0
+    bs = np.array([[r * np.cos(a), r * np.sin(a), 25.0] for a in np.deg2rad([90, 210, 330])])
+    phi = 0.1 * np.arange(num_points)
+    ue = np.stack([100 * np.cos(phi), 100 * np.sin(phi), np.full(num_points, 1.5)], axis=-1)
+    vel = np.stack([-10 * np.sin(phi), 10 * np.cos(phi), np.zeros(num_points)], axis=-1)
+    ep = ula_element_positions(5, 0.5 * 299_792_458.0 / FC, 0.0)
+    cir = uma_cir(np.broadcast_to(bs, (num_points, 3, 3)).copy(), ue, vel, np.zeros((num_points, 3, 3)),
+                  np.tile([0, 1, 2], (num_points, 1)), FC, ep, np.random.default_rng(seed), mode)
+    return cir, ue
+
+
+def make_chain(domain: str, rate: float | None, bs_ids) -> PositioningChain:
+    keys = simulated_keys(sorted(set(int(b) for b in bs_ids)), np.random.default_rng(7))
+    return PositioningChain(NRConfig(sample_rate_hz=rate), SecurityConfig(), ChannelConfig(domain=domain),
+                            ReceiverConfig(), ArrayConfig(), FC, keys)
+
+
+def run(chain: PositioningChain, cir, points) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """DL fixes, UL fixes [n, 3] (NaN when not ok), ok flags and seconds per point."""
+    dl = np.full((len(points), 3), np.nan)
+    ul = np.full((len(points), 3), np.nan)
+    chain(cir, int(points[0]), np.random.default_rng([SEED, int(points[0])]))  # warm-up (caches)
+    t0 = time.perf_counter()
+    for i, k in enumerate(points):
+        res = chain(cir, int(k), np.random.default_rng([SEED, int(k)]))
+        if res.position.ok:
+            dl[i] = res.position.position
+        if res.uplink is not None and res.uplink.position.ok:
+            ul[i] = res.uplink.position.position
+    return dl, ul, np.isfinite(dl[:, 0]), (time.perf_counter() - t0) / len(points)
+
+
+def pct(err: np.ndarray) -> str:
+    e = err[np.isfinite(err)]
+    if e.size == 0:
+        return "no fixes"
+    return f"p50 {np.percentile(e, 50):7.2f} m  p95 {np.percentile(e, 95):7.2f} m  ({e.size} fixes)"
+
+
+def compare(name: str, cir, truth: np.ndarray, ref_points: int) -> None:
+    ids = np.unique(cir.tx_index[cir.tx_index >= 0])
+    pts = np.arange(min(ref_points, cir.num_points))
+    fast = make_chain("frequency", None, ids)
+    ref = make_chain("time", 122.88e6, ids)
+    dl_f, _, _, t_f = run(fast, cir, pts)
+    dl_r, _, _, t_r = run(ref, cir, pts)
+    dev = np.linalg.norm(dl_f[:, :2] - dl_r[:, :2], axis=1)
+    print(f"[{name}] seconds per point: default (frequency, {fast.ofdm.sample_rate_hz / 1e6:.2f} MHz) "
+          f"{t_f:.3f} s, reference (time, 122.88 MHz) {t_r:.3f} s, speed-up {t_r / t_f:.1f}x "
+          f"over {len(pts)} points")
+    print(f"[{name}] DL deviation default vs reference: {pct(dev)}")
+    print(f"[{name}] DL error default:   {pct(np.linalg.norm(dl_f[:, :2] - truth[pts, :2], axis=1))}")
+    print(f"[{name}] DL error reference: {pct(np.linalg.norm(dl_r[:, :2] - truth[pts, :2], axis=1))}")
+
+
+def accuracy(name: str, cir, truth: np.ndarray) -> None:
+    ids = np.unique(cir.tx_index[cir.tx_index >= 0])
+    chain = make_chain("frequency", None, ids)
+    pts = np.arange(cir.num_points)
+    dl, ul, ok, t = run(chain, cir, pts)
+    print(f"[{name}] {len(pts)} points, {t:.3f} s/point, DL fix rate {100 * ok.mean():.0f}%")
+    print(f"[{name}] DL error: {pct(np.linalg.norm(dl[:, :2] - truth[:, :2], axis=1))}")
+    print(f"[{name}] UL error: {pct(np.linalg.norm(ul[:, :2] - truth[:, :2], axis=1))}")
+
+
+def load_rt(cache: str, scene: str, num_points: int):
+    from veriloc_rt.config import config_from_dict
+    from veriloc_rt.propagation.raytrace import trace
+    from veriloc_rt.scenario import build_geometry
+    cfg = config_from_dict({"trajectory": {"num_points": num_points}})
+    geo = build_geometry(cfg, scene)
+    prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=cache)
+    return prop.bs_ue, prop.bs_ue.rx_pos
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--uma-points", type=int, default=100)
+    ap.add_argument("--ref-points", type=int, default=5)
+    ap.add_argument("--rt-cache", default=None)
+    ap.add_argument("--rt-scene", default="/tmp/scene100")
+    ap.add_argument("--rt-points", type=int, default=100)
+    ap.add_argument("--skip", nargs="*", default=[], choices=["compare", "uma", "rt"])
+    args = ap.parse_args()
+    if "compare" not in args.skip:
+        cir, ue = synthetic_uma(max(args.ref_points, 2), "pathloss_only", SEED)
+        compare("UMa pathloss_only", cir, ue, args.ref_points)
+        if args.rt_cache:
+            cir, ue = load_rt(args.rt_cache, args.rt_scene, args.rt_points)
+            compare("ray-traced", cir, ue, args.ref_points)
+    if "uma" not in args.skip:
+        for mode in ("pathloss_only", "fast_fading"):
+            cir, ue = synthetic_uma(args.uma_points, mode, SEED)
+            accuracy(f"UMa {mode}", cir, ue)
+    if args.rt_cache and "rt" not in args.skip:
+        cir, ue = load_rt(args.rt_cache, args.rt_scene, args.rt_points)
+        accuracy("ray-traced", cir, ue)
+
+
+if __name__ == "__main__":
+    main()
