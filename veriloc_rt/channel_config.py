@@ -69,6 +69,11 @@ class ReceiverConfig:
                                   "noise floor (mean noise-only metric) by this much; 8 dB with 5 "
                                   "antennas is a chi-square(10) tail of ~1e-9 per delay bin",
                                   lo=0.0, hi=60.0)
+    detection_false_alarm: float = param(1e-3, "probability that noise alone is detected as a BS "
+                                         "in one search (all delay bins and Doppler "
+                                         "hypotheses); sets a chi-square(2 x antennas) "
+                                         "threshold applied on top of hearability_db",
+                                         lo=1e-12, hi=0.5)
     doppler_max_hz: float = param(400.0, "Doppler scan half-range (0 disables the scan)",
                                   lo=0.0, hi=5000.0)
     doppler_step_hz: float = param(25.0, "Doppler scan step (the frame's Doppler resolution is "

@@ -15,8 +15,10 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
 2. corrects the residual phase: the phase of the per-block peaks, derotated by nu, is regressed
    on t_b and the slope refines nu;
 3. forms the delay profile sum_a |C_a(tau)|^2 (zero-padded IFFT on a grid), detects the BS if
-   its peak clears the noise floor by ``hearability_db`` (the floor is exact: sigma^2 sum_k
-   w_k^2 |X_k|^2 per block and antenna, with sigma^2 the per-RE noise variance);
+   its peak clears the noise floor by ``hearability_db`` and by the chi-square(2A) quantile
+   that noise alone exceeds with probability ``detection_false_alarm`` over all searched cells
+   (delay bins / upsample x Doppler hypotheses); the floor is exact: sigma^2 sum_k
+   w_k^2 |X_k|^2 per block and antenna, with sigma^2 the per-RE noise variance;
 4. picks the ToA: the strongest peak, or the first local peak above both a noise-derived
    threshold (chi-square with 2A degrees of freedom at ``false_alarm`` per bin) and
    ``first_path_rel_db`` below the strongest (on a Hann-windowed profile);
@@ -186,7 +188,9 @@ class ToAEstimator:
         peak = float(m_rect.max())
         tiny = 1e-30 + 1e-15 * peak
         snr_db = 10 * np.log10(peak / max(floor_rect, tiny)) if peak > 0 else -np.inf
-        detected = bool(snr_db >= cfg.hearability_db)
+        n_cells = max(lags.size / cfg.upsample, 1.0) * (nus.size if cfg.doppler_max_hz > 0 else 1)
+        gamma_det = chi2.isf(cfg.detection_false_alarm / n_cells, 2 * a_n) / (2 * a_n)
+        detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         # 4. ToA rule
         if cfg.toa_method == "strongest":
             win = np.ones(cs.freqs.shape)
