@@ -38,7 +38,7 @@ from .propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "equal_arrival_powers",
            "re_amplitude", "symbol_times", "frequency_response", "apply_frequency", "apply_time",
-           "add_noise", "timing_reference"]
+           "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
 
 def dbm_to_watt(power_dbm) -> np.ndarray | float:
@@ -142,13 +142,32 @@ def re_amplitude(power_w, ofdm: OFDM) -> np.ndarray:
     return np.sqrt(np.asarray(power_w, dtype=float) * ofdm.fft_size / ofdm.num_subcarriers)
 
 
+_LAYOUTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def symbol_layout(ofdm: OFDM, slots) -> tuple[np.ndarray, np.ndarray]:
+    """CP start and CP length of every symbol (cached per numerology, FFT size and slots).
+
+    :returns: starts, cps : [num_slots, 14] int64, samples
+    """
+    key = (ofdm.numerology, ofdm.fft_size, tuple(int(s) for s in slots))
+    if key not in _LAYOUTS:
+        if len(_LAYOUTS) > 64:
+            _LAYOUTS.clear()
+        starts = ofdm.symbol_starts(slots)
+        cps = np.stack([ofdm.cp_lengths(int(s)) for s in slots])
+        starts.flags.writeable = False
+        cps.flags.writeable = False
+        _LAYOUTS[key] = (starts, cps)
+    return _LAYOUTS[key]
+
+
 def symbol_times(ofdm: OFDM, slots, t0: float) -> np.ndarray:
     """Centre of each symbol's FFT window in a buffer starting at t0 (absolute time).
 
     :returns: t : [num_slots, 14] float64, s
     """
-    starts = ofdm.symbol_starts(slots)
-    cps = np.stack([ofdm.cp_lengths(int(s)) for s in slots])
+    starts, cps = symbol_layout(ofdm, slots)
     return t0 + (starts + cps + (ofdm.fft_size - 1) / 2.0) / ofdm.sample_rate_hz
 
 
@@ -231,5 +250,7 @@ def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator) -> np.nd
         raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
     if variance <= 0:
         return np.array(x, dtype=np.complex128)
-    s = np.sqrt(variance / 2.0)
-    return x + s * (rng.standard_normal(x.shape) + 1j * rng.standard_normal(x.shape))
+    n = rng.standard_normal(x.shape + (2,)).view(np.complex128)[..., 0]
+    n *= np.sqrt(variance / 2.0)
+    n += x
+    return n

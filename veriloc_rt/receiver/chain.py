@@ -33,7 +33,7 @@ from ..nr.ofdm import OFDM
 from ..propagation.cir import CIR, NO_TX, ula_element_positions
 from ..security.config import SecurityConfig
 from ..security.keys import BSKeys, make_keys
-from ..security.tag_receiver import TagVerifier
+from ..security.tag_receiver import TagVerifier, estimate_tag_channel
 from .aoa import AoAEstimate, AoAEstimator
 from .multilateration import MultilaterationResult, Multilaterator
 from .sync import frequency_cross_spectra, noise_variance, time_cross_spectra
@@ -177,13 +177,26 @@ class PositioningChain:
         iq = add_noise(iq, self.noise_var, rng)
         return self.ofdm.demodulate(iq, self.slots), iq
 
-    def _tags(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int) -> bool:
+    def _tags(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
+              replica: np.ndarray | None) -> bool:
+        """All checked tags of BS ``bs`` verify, on the grid combined towards its peak (MRC).
+
+        :param replica: [S, 14, K] the BS's own PRS replica (None: the verifier regenerates it)
+        """
         w = np.conj(est.peak)
         nrm = np.linalg.norm(w)
         w = w / nrm if nrm > 0 else np.ones_like(w) / np.sqrt(w.size)
+        lay = verifier.layout
         for s in self.receiver.tag_slots:
             combined = np.tensordot(w, grid[:, s], axes=(0, 0))
-            if not verifier(combined, bs, frame, int(self.slots[s])):
+            if replica is None:
+                ok = verifier(combined, bs, frame, int(self.slots[s]))
+            else:  # same estimate as the verifier's own, from the cached replica
+                h_t, nv = estimate_tag_channel(combined, lay, bs, replica[s], verifier.smoothing)
+                full = np.zeros_like(combined)
+                full[lay.symbols[:, None], lay.tag_subcarriers(bs)] = h_t
+                ok = verifier(combined, bs, frame, int(self.slots[s]), channel=full, noise_var=nv)
+            if not ok:
                 return False
         return True
 
@@ -271,7 +284,8 @@ class PositioningChain:
         tags = np.zeros(self.num_bs, dtype=bool)
         if verifier is not None:
             for b, (e, _) in enumerate(ests):
-                tags[b] = e.detected and self._tags(verifier, grid, e, b, frame)
+                rep = sig["replicas"][b] if encrypted_replica is None else None
+                tags[b] = e.detected and self._tags(verifier, grid, e, b, frame, rep)
         up = None
         if self.uplink is not None:
             up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)

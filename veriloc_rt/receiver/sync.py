@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from ..channel import subcarrier_frequencies
+from ..channel import subcarrier_frequencies, symbol_layout
 from ..nr.ofdm import OFDM
 from .toa import CrossSpectra
 
@@ -37,8 +37,7 @@ def block_index(replica: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _block_times(ofdm: OFDM, slots, s_idx: np.ndarray, l_idx: np.ndarray) -> np.ndarray:
-    starts = ofdm.symbol_starts(slots)
-    cps = np.stack([ofdm.cp_lengths(int(s)) for s in slots])
+    starts, cps = symbol_layout(ofdm, slots)
     return (starts[s_idx, l_idx] + cps[s_idx, l_idx] + (ofdm.fft_size - 1) / 2.0) / ofdm.sample_rate_hz
 
 
@@ -74,8 +73,8 @@ def time_cross_spectra(rx_iq: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots
     fs = ofdm.sample_rate_hz
     wave = ofdm.modulate(replica, slots)
     s_idx, l_idx = block_index(replica)
-    starts = ofdm.symbol_starts(slots)[s_idx, l_idx]
-    cps = np.stack([ofdm.cp_lengths(int(s)) for s in slots])[s_idx, l_idx]
+    starts, cps = symbol_layout(ofdm, slots)
+    starts, cps = starts[s_idx, l_idx], cps[s_idx, l_idx]
     lens = cps + ofdm.fft_size
     g = int(np.ceil(guard_s * fs)) + 2
     w = int(np.ceil(window_s * fs)) + 2

@@ -115,12 +115,12 @@ class ToAEstimator:
         x = np.clip(cs.freqs / (cs.band_hz + cs.bin_spacing_hz), -0.5, 0.5)
         return np.cos(np.pi * x) ** 2
 
-    def _grid(self, cs: CrossSpectra) -> tuple[np.ndarray, np.ndarray, int]:
+    def _grid(self, cs: CrossSpectra, upsample: int) -> tuple[np.ndarray, np.ndarray, int]:
         """Grid indices of the bins, the searched lag indices and the grid size."""
         idx = np.round(cs.freqs / cs.bin_spacing_hz).astype(np.int64)
         span = int(idx.max() - idx.min() + 1)
         n_up = 1 << int(np.ceil(np.log2(max(span, 2))))
-        n_up *= self.cfg.upsample
+        n_up *= upsample
         step = 1.0 / (n_up * cs.bin_spacing_hz)
         lags = np.arange(-int(np.ceil(self.guard_s / step)), int(np.ceil(self.cfg.search_window_s / step)) + 1)
         if lags.size >= n_up:
@@ -145,16 +145,18 @@ class ToAEstimator:
         cfg = self.cfg
         s, t = cs.spectra, cs.block_times
         a_n = cs.num_ant
-        idx, lags, n_up = self._grid(cs)
+        idx, lags, n_up = self._grid(cs, cfg.upsample)
         step = 1.0 / (n_up * cs.bin_spacing_hz)
         tc = t - t.mean()
-        # 1. Doppler scan on the unwindowed metric
+        # 1. Doppler scan on the unwindowed metric (on the grid without zero padding: the
+        #    straddle loss is common to every Doppler hypothesis)
         if cfg.doppler_max_hz > 0:
             nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
             rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])             # [V, B]
             a_, b_, k_ = s.shape
             g_nu = (rot @ s.transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
-            metric = np.sum(np.abs(self._profiles(g_nu, idx, lags, n_up)) ** 2, axis=1).max(axis=-1)
+            idx1, lags1, n1 = self._grid(cs, 1)
+            metric = np.sum(np.abs(self._profiles(g_nu, idx1, lags1, n1)) ** 2, axis=1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
