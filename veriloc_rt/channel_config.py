@@ -28,6 +28,11 @@ class ChannelConfig:
                         "spread fits in the cyclic prefix and Doppler << SCS; fast); 'time': "
                         "IQ at the sample rate, exact fractional delays and Doppler (reference)",
                         choices=DOMAINS)
+    time_decimation: int = param(1, "time domain only: apply the paths at sample_rate / D after an "
+                                 "ideal low-pass, then interpolate back (exact inside the band, "
+                                 "drops the CP-OFDM out-of-band leakage; D times cheaper per path, "
+                                 "for many-path links such as UMa fast fading); capped so the "
+                                 "band still fits; 1: no decimation", lo=1, hi=64)
     bs_max_power_dbm: float = param(24.0, "largest serving-BS transmit power (paper: 24 dBm)",
                                     lo=-50.0, hi=80.0)
     power_control: bool = param(True, "idealised power control: each serving BS's power is set "

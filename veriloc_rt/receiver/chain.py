@@ -122,6 +122,7 @@ class PositioningChain:
         self.frame_samples = self.ofdm.num_samples(self.slots)
         self.buffer_samples = self.frame_samples + int(np.ceil(receiver.search_window_s * fs)) + 64
         self.busy_symbols = tuple(int(l) for l in nr.prs_symbols)
+        self.decimation = max(1, min(channel.time_decimation, self.ofdm.fft_size // nr.min_fft_size))
         self._frame: tuple | None = None
 
     @property
@@ -167,13 +168,14 @@ class PositioningChain:
                 if adv_signal.ndim == 3:
                     y = y + apply_frequency(adv, adv_signal[None], adv_amp, self.ofdm, self.slots, t0)
                 else:
-                    iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples)
+                    iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples,
+                                    self.decimation)
                     y = y + self.ofdm.demodulate(iq, self.slots)
             return add_noise(y, self.noise_var, rng), None
-        iq = apply_time(links, sig["waveform"], amps, fs, t0, self.buffer_samples)
+        iq = apply_time(links, sig["waveform"], amps, fs, t0, self.buffer_samples, self.decimation)
         if adv is not None:
             wave = self.ofdm.modulate(adv_signal, self.slots) if adv_signal.ndim == 3 else adv_signal
-            iq = iq + apply_time(adv, wave[None], adv_amp, fs, t0, self.buffer_samples)
+            iq = iq + apply_time(adv, wave[None], adv_amp, fs, t0, self.buffer_samples, self.decimation)
         iq = add_noise(iq, self.noise_var, rng)
         return self.ofdm.demodulate(iq, self.slots), iq
 

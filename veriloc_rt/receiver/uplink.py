@@ -75,7 +75,8 @@ class UplinkPositioner:
             y = apply_frequency(link, self.grid[None], amp, self.ofdm, self.slots, t0)
         else:
             n = self.waveform.shape[-1] + int(np.ceil(self.receiver.search_window_s * self.ofdm.sample_rate_hz)) + 64
-            y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n)
+            dec = max(1, min(self.channel.time_decimation, self.ofdm.fft_size // self.nr.min_fft_size))
+            y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n, dec)
         return add_noise(y, self.noise_var, rng)
 
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
