@@ -20,8 +20,11 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
    (delay bins / upsample x Doppler hypotheses); the floor is exact: sigma^2 sum_k
    w_k^2 |X_k|^2 per block and antenna, with sigma^2 the per-RE noise variance;
 4. picks the ToA: the strongest peak, or the first local peak above both a noise-derived
-   threshold (chi-square with 2A degrees of freedom at ``false_alarm`` per bin) and
-   ``first_path_rel_db`` below the strongest (on a Hann-windowed profile);
+   threshold (chi-square with 2A degrees of freedom at ``false_alarm`` per bin and Doppler
+   hypothesis) and ``first_path_rel_db`` below the strongest, on a Hann-windowed delay-Doppler
+   map maximised over Doppler per delay bin (the paths of one link spread over +-f_D,max, more
+   than the frame's Doppler resolution, so one common Doppler could null the first path); the
+   first path's own Doppler then replaces the scan's;
 5. refines it below the grid step by parabolic interpolation on exact evaluations of the profile.
 """
 
@@ -200,14 +203,39 @@ class ToAEstimator:
             i = int(np.argmax(metric))
         else:
             win = self._window(cs, cfg.first_path_window)
-            metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
+            if cfg.doppler_max_hz > 0:
+                # delay-Doppler map: paths of one link can differ in Doppler by 2 f_D,max, more
+                # than the frame's 100 Hz resolution; a single coherent Doppler can null the
+                # first path, so each delay bin takes its best Doppler hypothesis
+                rot_v = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])
+                gw_v = (rot_v @ (s * win).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
+                dmap = np.sum(np.abs(self._profiles(gw_v, idx, lags, n_up)) ** 2, axis=1)  # [V, L]
+                metric = dmap.max(axis=0)
+                n_hyp = nus.size
+            else:
+                metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
+                n_hyp = 1
             floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
-            gamma = chi2.isf(cfg.false_alarm, 2 * a_n) / (2 * a_n)
+            gamma = chi2.isf(cfg.false_alarm / n_hyp, 2 * a_n) / (2 * a_n)
             thr = max(gamma * floor, metric.max() * 10 ** (-cfg.first_path_rel_db / 10))
             above = np.flatnonzero(metric >= thr)
             i = int(above[0]) if above.size else int(np.argmax(metric))
             while i + 1 < metric.size and metric[i + 1] > metric[i]:
                 i += 1
+            if cfg.doppler_max_hz > 0:  # the first path's own Doppler, parabolic in nu
+                col = dmap[:, i]
+                v = int(np.argmax(col))
+                nu_fp = float(nus[v])
+                if 0 < v < nus.size - 1:
+                    nu_fp += cfg.doppler_step_hz * _parabola(*col[v - 1:v + 2])
+                if abs(nu_fp - nu) > cfg.doppler_step_hz:
+                    nu = nu_fp
+                    rot = np.exp(-2j * np.pi * nu * tc)
+                    g = _combine(rot, s)
+                    metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
+                    i = max(0, min(metric.size - 1, i))
+                    while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
+                        i += 1 if metric[i + 1] > metric[i] else -1
         # 5. sub-sample refinement
         if 0 < i < metric.size - 1:
             tau = (lags[i] + _parabola(*metric[i - 1:i + 2])) * step
