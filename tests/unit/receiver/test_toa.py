@@ -162,7 +162,7 @@ def test_hearability_threshold():
     for _ in range(NOISE_DRAWS):
         noise_only = add_noise(np.zeros((1, 2, 14, nr.num_subcarriers), complex), 1.0, rng)
         nv = noise_variance(noise_only, nr.prs_symbols)
-        assert nv == pytest.approx(1.0, rel=0.08)   # 2 x 2 x 624 free REs: std 2%, 4 sigma
+        assert nv == pytest.approx(1.0, rel=0.12)   # 2 x 2 x 624 free REs: std 2%, 6 sigma
         quiet = est(frequency_cross_spectra(noise_only, rep, ofdm, slots), nv)
         false += quiet.detected
         assert quiet.detected or np.isnan(quiet.toa_s)
