@@ -142,6 +142,20 @@ class ToAEstimator:
         """Exact complex profile at one delay: [..., num_bins] -> [...]."""
         return g @ np.exp(2j * np.pi * freqs * tau)
 
+    def _first_crossing(self, metric: np.ndarray, floor: float, n_hyp: int, num_ant: int) -> int:
+        """Index of the first local peak above the noise and relative thresholds.
+
+        The noise threshold is the chi-square(2 num_ant) quantile at ``false_alarm`` per bin,
+        divided over the ``n_hyp`` Doppler hypotheses each bin is the maximum of.
+        """
+        gamma = chi2.isf(self.cfg.false_alarm / n_hyp, 2 * num_ant) / (2 * num_ant)
+        thr = max(gamma * floor, metric.max() * 10 ** (-self.cfg.first_path_rel_db / 10))
+        above = np.flatnonzero(metric >= thr)
+        i = int(above[0]) if above.size else int(np.argmax(metric))
+        while i + 1 < metric.size and metric[i + 1] > metric[i]:
+            i += 1
+        return i
+
     # -- main ------------------------------------------------------------------------------
     def __call__(self, cs: CrossSpectra, noise_var: float) -> ToAEstimate:
         """Estimate Doppler and ToA; ``noise_var`` is the per-RE noise variance (>= 0)."""
@@ -203,39 +217,35 @@ class ToAEstimator:
             i = int(np.argmax(metric))
         else:
             win = self._window(cs, cfg.first_path_window)
+            floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
             if cfg.doppler_max_hz > 0:
-                # delay-Doppler map: paths of one link can differ in Doppler by 2 f_D,max, more
-                # than the frame's 100 Hz resolution; a single coherent Doppler can null the
-                # first path, so each delay bin takes its best Doppler hypothesis
+                # delay-Doppler map (on the grid without zero padding): paths of one link can
+                # differ in Doppler by 2 f_D,max, more than the frame's 100 Hz resolution, and a
+                # single coherent Doppler can null the first path; each delay bin takes its best
+                # Doppler hypothesis
+                idx1, lags1, n1 = self._grid(cs, 1)
                 rot_v = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])
                 gw_v = (rot_v @ (s * win).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
-                dmap = np.sum(np.abs(self._profiles(gw_v, idx, lags, n_up)) ** 2, axis=1)  # [V, L]
-                metric = dmap.max(axis=0)
-                n_hyp = nus.size
-            else:
-                metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
-                n_hyp = 1
-            floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
-            gamma = chi2.isf(cfg.false_alarm / n_hyp, 2 * a_n) / (2 * a_n)
-            thr = max(gamma * floor, metric.max() * 10 ** (-cfg.first_path_rel_db / 10))
-            above = np.flatnonzero(metric >= thr)
-            i = int(above[0]) if above.size else int(np.argmax(metric))
-            while i + 1 < metric.size and metric[i + 1] > metric[i]:
-                i += 1
-            if cfg.doppler_max_hz > 0:  # the first path's own Doppler, parabolic in nu
-                col = dmap[:, i]
+                dmap = np.sum(np.abs(self._profiles(gw_v, idx1, lags1, n1)) ** 2, axis=1)  # [V, L1]
+                coarse = dmap.max(axis=0)
+                i1 = self._first_crossing(coarse, floor, nus.size, a_n)
+                col = dmap[:, i1]
                 v = int(np.argmax(col))
                 nu_fp = float(nus[v])
                 if 0 < v < nus.size - 1:
                     nu_fp += cfg.doppler_step_hz * _parabola(*col[v - 1:v + 2])
-                if abs(nu_fp - nu) > cfg.doppler_step_hz:
+                if abs(nu_fp - nu) > cfg.doppler_step_hz:   # the first path's own Doppler
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
                     g = _combine(rot, s)
-                    metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
-                    i = max(0, min(metric.size - 1, i))
-                    while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
-                        i += 1 if metric[i + 1] > metric[i] else -1
+                metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
+                tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
+                i = int(np.clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
+                while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
+                    i += 1 if metric[i + 1] > metric[i] else -1
+            else:
+                metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
+                i = self._first_crossing(metric, floor, 1, a_n)
         # 5. sub-sample refinement
         if 0 < i < metric.size - 1:
             tau = (lags[i] + _parabola(*metric[i - 1:i + 2])) * step
