@@ -8,8 +8,10 @@
 2. Benign DL and UL position error (p50/p95) of the default chain on TR 38.901 UMa
    (pathloss_only and fast_fading) along a simple synthetic trajectory: 3 BSs at alternate
    vertices of a hexagon (R = 289 m, 25 m high), the UE on a 100 m circle at 10 m/s.
-3. With ``--rt-cache``: the same on cached ray-traced CIRs of the default scenario (build them
-   first as described in the issue; this script never traces).
+3. With ``--rt-cache``: the same on ray-traced CIRs of the default scenario (100 points). They
+   come from ``trace(...)`` with that cache directory: it reuses the cache when the scene, config
+   and ray-tracing fidelity match what was cached, and otherwise TRACES (30-60 s of CPU), e.g.
+   after a change of the default ray-tracing fidelity.
 
 BLAS is limited to one thread (as in the engine's one-process-per-core executors): on a shared
 2-core machine multithreaded BLAS on these small matrices is ~10x slower.
