@@ -219,11 +219,12 @@ class ToAEstimator:
             win = self._window(cs, cfg.first_path_window)
             floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
             if cfg.doppler_max_hz > 0:
-                # delay-Doppler map (on the grid without zero padding): paths of one link can
+                # delay-Doppler map (on the zero-padded grid: a coarse one was measured to lose
+                # accuracy on UMa fast fading, p50 12.6 -> 17.8 m): paths of one link can
                 # differ in Doppler by 2 f_D,max, more than the frame's 100 Hz resolution, and a
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
-                idx1, lags1, n1 = self._grid(cs, 1)
+                idx1, lags1, n1 = idx, lags, n_up
                 rot_v = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])
                 gw_v = (rot_v @ (s * win).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
                 dmap = np.sum(np.abs(self._profiles(gw_v, idx1, lags1, n1)) ** 2, axis=1)  # [V, L1]
