@@ -54,6 +54,18 @@ def _x1(total: int) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=4)
+def _x2_basis(total: int) -> np.ndarray:
+    """[31, total] uint8: the x2 m-sequence started from each unit initial state e_i."""
+    out = np.empty((31, total), dtype=np.uint8)
+    for i in range(31):
+        init = np.zeros(31, dtype=np.uint8)
+        init[i] = 1
+        out[i] = _lfsr(init, (0, 1, 2, 3), total)
+    out.setflags(write=False)
+    return out
+
+
 def gold_sequence(c_init: int, length: int) -> np.ndarray:
     """Length-31 Gold sequence c(n), TS 38.211 clause 5.2.1.
 
@@ -64,11 +76,14 @@ def gold_sequence(c_init: int, length: int) -> np.ndarray:
     c_init = _check_int("c_init", c_init, 0, _MAX_C_INIT - 1)
     length = _check_int("length", length, 0, 2**26)
     total = GOLD_NC + length + 31
-    state = ((c_init >> np.arange(31)) & 1).astype(np.uint8)
-    x2 = _lfsr(state, (0, 1, 2, 3), total)
-    # x1 is the same for every c_init: cache it per total length (rounded up to reuse entries)
-    x1 = _x1(-(-total // 4096) * 4096)[:total]
-    return x1[GOLD_NC:GOLD_NC + length] ^ x2[GOLD_NC:GOLD_NC + length]
+    # x1 is the same for every c_init, and x2 is linear over GF(2) in its initial state: x2 is
+    # the XOR of the basis sequences of the set bits of c_init. Both are cached per total length
+    # (rounded up to reuse entries), so a sequence costs one XOR-reduction instead of an LFSR run.
+    padded = -(-total // 4096) * 4096
+    bits = ((c_init >> np.arange(31)) & 1).astype(bool)
+    x1 = _x1(padded)[GOLD_NC:GOLD_NC + length]
+    basis = _x2_basis(padded)[bits, GOLD_NC:GOLD_NC + length]
+    return x1 ^ np.bitwise_xor.reduce(basis, axis=0) if basis.shape[0] else x1.copy()
 
 
 def prs_c_init(n_id_seq: int, slot: int, symbol: int, symbols_per_slot: int = SYMBOLS_PER_SLOT) -> int:

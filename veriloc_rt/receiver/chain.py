@@ -36,7 +36,7 @@ from ..security.keys import BSKeys, make_keys
 from ..security.tag_receiver import TagVerifier, estimate_tag_channel
 from .aoa import AoAEstimate, AoAEstimator
 from .multilateration import MultilaterationResult, Multilaterator
-from .sync import frequency_cross_spectra, noise_variance, time_cross_spectra
+from .sync import frequency_cross_spectra, noise_dof, noise_variance, time_cross_spectra
 from .toa import ToAEstimate, ToAEstimator
 from .uplink import UplinkPositioner, UplinkResult
 
@@ -250,6 +250,7 @@ class PositioningChain:
         grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng)
         nv = noise_variance(grid, self.busy_symbols)
         nv = nv if np.isfinite(nv) else self.noise_var
+        dof = noise_dof(grid, self.busy_symbols)
         ests = []
         for b in range(self.num_bs):
             if iq is None:
@@ -257,7 +258,7 @@ class PositioningChain:
             else:
                 cs = time_cross_spectra(iq, sig["replicas"][b], self.ofdm, self.slots,
                                         self.channel.timing_guard_s, self.receiver.search_window_s)
-            ests.append((self.toa(cs, nv), cs))
+            ests.append((self.toa(cs, nv, dof), cs))
         det = np.array([e.detected for e, _ in ests])
         toa = np.array([t0 + e.toa_s if e.detected else np.nan for e, _ in ests])
         rstd = toa - toa[0]

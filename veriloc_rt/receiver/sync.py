@@ -113,3 +113,27 @@ def noise_variance(rx_grid: np.ndarray, busy_symbols) -> float:
     if not free:
         return float("nan")
     return float(np.mean(np.abs(rx_grid[..., free, :]) ** 2))
+
+
+def noise_dof(rx_grid: np.ndarray, busy_symbols) -> float:
+    """Effective chi-square degrees of freedom of sum_a |noise_a|^2 across the antennas.
+
+    White noise, independent per antenna, gives 2 A; noise from one direction (a jammer, a
+    relay's amplified noise) is coherent across the array and gives 2: its sum over antennas
+    has the tail of a single exponential, which a 2 A-dof threshold underestimates by several
+    dB. Satterthwaite's match of the first two moments of sum_i lambda_i chi2(2) / 2, with
+    lambda_i the eigenvalues of the spatial covariance on the free symbols:
+    dof = 2 (sum lambda)^2 / sum lambda^2.
+
+    :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
+    :returns: float in [2, 2 num_ant] (2 num_ant when every symbol is busy)
+    """
+    a = rx_grid.shape[0]
+    free = [l for l in range(rx_grid.shape[-2]) if l not in set(int(b) for b in busy_symbols)]
+    if not free:
+        return 2.0 * a
+    x = rx_grid[..., free, :].reshape(a, -1)
+    lam = np.clip(np.linalg.eigvalsh(x @ x.conj().T / x.shape[1]), 0.0, None)
+    if lam.sum() <= 0:
+        return 2.0 * a
+    return float(np.clip(2.0 * lam.sum() ** 2 / np.sum(lam ** 2), 2.0, 2.0 * a))

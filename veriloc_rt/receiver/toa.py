@@ -142,13 +142,13 @@ class ToAEstimator:
         """Exact complex profile at one delay: [..., num_bins] -> [...]."""
         return g @ np.exp(2j * np.pi * freqs * tau)
 
-    def _first_crossing(self, metric: np.ndarray, floor: float, n_hyp: int, num_ant: int) -> int:
+    def _first_crossing(self, metric: np.ndarray, floor: float, n_hyp: int, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
 
-        The noise threshold is the chi-square(2 num_ant) quantile at ``false_alarm`` per bin,
+        The noise threshold is the chi-square(dof) quantile at ``false_alarm`` per bin,
         divided over the ``n_hyp`` Doppler hypotheses each bin is the maximum of.
         """
-        gamma = chi2.isf(self.cfg.false_alarm / n_hyp, 2 * num_ant) / (2 * num_ant)
+        gamma = chi2.isf(self.cfg.false_alarm / n_hyp, dof) / dof
         thr = max(gamma * floor, metric.max() * 10 ** (-self.cfg.first_path_rel_db / 10))
         above = np.flatnonzero(metric >= thr)
         i = int(above[0]) if above.size else int(np.argmax(metric))
@@ -157,11 +157,19 @@ class ToAEstimator:
         return i
 
     # -- main ------------------------------------------------------------------------------
-    def __call__(self, cs: CrossSpectra, noise_var: float) -> ToAEstimate:
-        """Estimate Doppler and ToA; ``noise_var`` is the per-RE noise variance (>= 0)."""
+    def __call__(self, cs: CrossSpectra, noise_var: float, noise_dof: float | None = None) -> ToAEstimate:
+        """Estimate Doppler and ToA.
+
+        :param noise_var: per-RE noise variance (>= 0), averaged over the antennas
+        :param noise_dof: chi-square degrees of freedom of the antenna-summed noise power
+            (:func:`~veriloc_rt.receiver.sync.noise_dof`); None: 2 A, noise independent per
+            antenna. Spatially coherent noise (jammer, relay) needs fewer, i.e. higher
+            thresholds.
+        """
         cfg = self.cfg
         s, t = cs.spectra, cs.block_times
         a_n = cs.num_ant
+        dof = float(2 * a_n if noise_dof is None else np.clip(noise_dof, 2.0, 2 * a_n))
         idx, lags, n_up = self._grid(cs, cfg.upsample)
         step = 1.0 / (n_up * cs.bin_spacing_hz)
         tc = t - t.mean()
@@ -208,7 +216,7 @@ class ToAEstimator:
         tiny = 1e-30 + 1e-15 * peak
         snr_db = 10 * np.log10(peak / max(floor_rect, tiny)) if peak > 0 else -np.inf
         n_cells = max(lags.size / cfg.upsample, 1.0) * (nus.size if cfg.doppler_max_hz > 0 else 1)
-        gamma_det = chi2.isf(cfg.detection_false_alarm / n_cells, 2 * a_n) / (2 * a_n)
+        gamma_det = chi2.isf(cfg.detection_false_alarm / n_cells, dof) / dof
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         # 4. ToA rule
         if cfg.toa_method == "strongest":
@@ -229,7 +237,7 @@ class ToAEstimator:
                 gw_v = (rot_v @ (s * win).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
                 dmap = np.sum(np.abs(self._profiles(gw_v, idx1, lags1, n1)) ** 2, axis=1)  # [V, L1]
                 coarse = dmap.max(axis=0)
-                i1 = self._first_crossing(coarse, floor, nus.size, a_n)
+                i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
                 v = int(np.argmax(col))
                 nu_fp = float(nus[v])
@@ -246,7 +254,7 @@ class ToAEstimator:
                     i += 1 if metric[i + 1] > metric[i] else -1
             else:
                 metric = np.sum(np.abs(self._profiles(g * win, idx, lags, n_up)) ** 2, axis=0)
-                i = self._first_crossing(metric, floor, 1, a_n)
+                i = self._first_crossing(metric, floor, 1, dof)
         # 5. sub-sample refinement
         if 0 < i < metric.size - 1:
             tau = (lags[i] + _parabola(*metric[i - 1:i + 2])) * step
