@@ -5,6 +5,13 @@ Exit codes: 0 success, 2 bad input (one line ``error: <field>: <problem>``), 1 a
 
 from __future__ import annotations
 
+import os
+
+# one BLAS thread: the chain's matrices are small, and multithreaded BLAS on them was measured
+# ~10x slower on a shared 2-core machine (scripts/bench_chain.py); set before numpy loads
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
 import argparse
 import dataclasses
 import json
@@ -65,29 +72,51 @@ def cmd_run(args) -> int:
 
     cfg = _load(args.config, args.points, args.seed)
     out = Path(args.out)
-    res = run(cfg, out, progress=ProgressBar())
+    res = run(cfg, out, progress=ProgressBar(), resume=args.resume)
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
     print(f"scene: {what}, {s['num_bs']} serving BSs, "
           f"{s['num_points']} points, UE path {s['ue_path_length_m']:.0f} m "
-          f"(mean speed {s['ue_speed_mps_mean']:.1f} m/s)")
+          f"(mean speed {s['ue_speed_mps_mean']:.1f} m/s), propagation: {cfg.propagation.model}")
     for name in ("bs_to_ue", "bs_to_adversary", "adversary_to_ue"):
         d = s[name]
         line = f"{name:16s} links {d['links']:5d}  with path {d['links_with_path_pct']:5.1f} %"
         if "los_pct" in d:
             line += (f"  LoS {d['los_pct']:5.1f} %  paths/link {d['paths_per_link_mean']:5.1f}"
-                     f"  DS p50 {d['delay_spread_ns_p50']:6.1f} ns"
-                     f"  first-path excess p50 {d['first_path_excess_m_p50']:5.1f} m")
+                     f"  DS p50 {d['delay_spread_ns_p50']:6.1f} ns")
         print(line)
-    st = s["raytrace_stats"]
-    if cfg.propagation.model == "raytrace":
-        print(f"ray tracing: {st['calls']} solver calls, {st['cache_hits']} from cache, "
-              f"{st['trace_s']:.1f} s tracing; total {res.timing_s['total']:.1f} s")
-    else:
-        print(f"{st['model']}: {st['wall_s']:.1f} s; total {res.timing_s['total']:.1f} s")
-    print(f"wrote {out}/ (run.json, propagation_summary.json, scene_top_view.png, scene/)")
+    print(format_metrics(res.metrics))
+    t = res.timing_s
+    print(f"time: propagation {t['propagation']:.1f} s, chain {t.get('chain_total', 0):.1f} s, "
+          f"adversary {t.get('adversary_total', 0):.1f} s, detectors "
+          f"{t.get('detectors_total', 0):.1f} s; total {t['total']:.1f} s")
+    print(f"wrote {out}/ (metrics.json, <scenario>_results.csv, run.json, *.png, scene/)")
     return 0
+
+
+def _cell(v) -> str:
+    return "   n/a" if v is None else f"{v:6.1f}"
+
+
+def format_metrics(metrics: dict) -> str:
+    """The run's outcome and correct-decision tables as text."""
+    from .run_points import DETECTORS, OUTCOMES
+
+    sc = metrics["scenarios"]
+    lines = ["scenario     " + " ".join(f"{d:>9s}" for d in DETECTORS)
+             + "  | success  large  DoS (std PRS) | success  large  DoS (enc PRS)"]
+    for name, m in sc.items():
+        if not m.get("num_points"):
+            continue
+        rates = " ".join(f"{_cell(m['correct_decision_rate'][d]):>9s}" for d in DETECTORS)
+        o = " ".join(_cell(m["outcomes"][k]) for k in OUTCOMES)
+        e = m.get("outcomes_encrypted")
+        oe = " ".join(_cell(e[k]) for k in OUTCOMES) if e else ""
+        lines.append(f"{name:12s} {rates}  | {o}  | {oe}")
+    lines.append("correct-decision rate, %: benign = fixes accepted, attack = attack-window points "
+                 "rejected; outcomes, %: benign over all points, attack over the attack window")
+    return "\n".join(lines)
 
 
 def cmd_scene(args) -> int:
@@ -144,6 +173,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default="results", help="output folder (default: results)")
     r.add_argument("--points", type=int, help="number of trajectory points")
     r.add_argument("--seed", type=int, help="override the config's seed")
+    r.add_argument("--resume", action="store_true",
+                   help="keep the points already in --out (same config) and continue after them")
     r.set_defaults(func=cmd_run)
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")
@@ -172,7 +203,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("\ninterrupted; finished ray-tracing batches are kept in the cache", file=sys.stderr)
+        print("\ninterrupted; finished ray-tracing batches are kept in the cache and finished "
+              "points in the CSVs: add --resume to continue", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - one line for the user, details with -vv
         from .backend import BackendError

@@ -12,10 +12,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .channel_config import ChannelConfig, ReceiverConfig
 from .configtools import from_dict, json_schema, param, section, to_dict
+from .detectors.absa import ABSAConfig
+from .detectors.handshake import HandshakeConfig
+from .detectors.tags import TagDetectorConfig
+from .detectors.tracking import TrackingConfig
 from .errors import InputError, bad_value
 from .nr.config import NRConfig
 from .security.config import SecurityConfig
+from .threats.fbs import FBSConfig
+from .threats.jamming import JammingConfig
+from .threats.meaconing import MeaconingConfig
+
+#: scenarios a run can evaluate (DESIGN.md, "The public contract")
+SCENARIOS = ("none", "fbs", "meaconing", "jamming")
 
 
 @dataclass(frozen=True)
@@ -70,7 +81,8 @@ class TrajectoryConfig:
     """UE path (street-following generator or CSV) and the adversary that follows it."""
 
     source: str = param("generator", "'generator' or a CSV path with columns t,x,y[,z]")
-    num_points: int = param(1200, "number of trajectory points", lo=2, hi=1_000_000)
+    num_points: int = param(120, "number of trajectory points (the built-in default is small "
+                            "enough for a few minutes; configs/paper-*.json use the paper's 1200)", lo=2, hi=1_000_000)
     dt_s: float = param(1.0, "time between points", lo=0.001, hi=3600.0, lo_open=True)
     ue_height_m: float = param(1.5, "UE antenna height above ground", lo=0.1, hi=100.0)
     region_m: float = param(250.0, "half-side of the square, centred on the origin, the "
@@ -147,6 +159,80 @@ class PropagationConfig:
 
 
 @dataclass(frozen=True)
+class DetectorsConfig:
+    """The five per-point detectors (paper Sec. "Proposed Detection and Resilience Techniques")."""
+
+    hmac: TagDetectorConfig = section(TagDetectorConfig, "HMAC tag detector")
+    digsig: TagDetectorConfig = section(lambda: TagDetectorConfig(scheme="ds"),
+                                        "digital-signature (Ed25519) tag detector")
+    absa: ABSAConfig = section(ABSAConfig, "angular-based source authentication")
+    handshake: HandshakeConfig = section(HandshakeConfig, "DL-UL handshake")
+    tracking: TrackingConfig = section(TrackingConfig, "Kalman position tracking")
+
+    def validate(self, path: str = "detectors") -> None:
+        if self.hmac.scheme != "hmac":
+            raise bad_value(f"{path}.hmac.scheme", self.hmac.scheme, "'hmac'")
+        if self.digsig.scheme != "ds":
+            raise bad_value(f"{path}.digsig.scheme", self.digsig.scheme, "'ds'")
+
+
+@dataclass(frozen=True)
+class ThreatsConfig:
+    """The adversary of each attack scenario (paper Sec. "Adversarial Threat Models")."""
+
+    fbs: FBSConfig = section(FBSConfig, "selective PRS spoofing by a false BS")
+    meaconing: MeaconingConfig = section(MeaconingConfig, "meaconing relay")
+    jamming: JammingConfig = section(JammingConfig, "wideband jammer over the PRS band")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What ``veriloc-rt run`` evaluates: scenarios, attack window, outcome threshold."""
+
+    scenarios: tuple[str, ...] = param(SCENARIOS, "scenarios evaluated in one run, each over the "
+                                       "whole trajectory: 'none', 'fbs', 'meaconing', 'jamming'")
+    attack_start_fraction: float = param(0.25, "the adversary is active from point "
+                                         "floor(f * num_points) (0-based; paper: point 301 of "
+                                         "1200)", lo=0.0, hi=1.0)
+    attack_end_fraction: float = param(0.75, "... up to, excluding, point floor(f * num_points) "
+                                       "(paper: the attack ends after point 900 of 1200)",
+                                       lo=0.0, hi=1.0)
+    success_threshold_m: float = param(15.0, "a fix within this horizontal error is a success "
+                                       "(paper: 15 m, the benign 99.9th percentile)",
+                                       lo=0.0, lo_open=True, hi=1e6)
+    evaluate_encrypted: bool = param(True, "also run every scenario with all serving BSs "
+                                     "encrypted (outcomes_encrypted); the detectors are "
+                                     "evaluated on standard PRS, as in the paper")
+    digsig: str = param("separate", "'separate': the DigSig column comes from a second, DS-tagged "
+                        "chain call on the same noise and adversary draws (exact, costs a second "
+                        "call per point); 'shared': it reuses the HMAC-tagged run's tag checks "
+                        "with the same verdict rule (same decoder, codeword lengths differ)",
+                        choices=("separate", "shared"))
+
+    def validate(self, path: str = "run") -> None:
+        if not self.scenarios:
+            raise bad_value(f"{path}.scenarios", list(self.scenarios), "at least one scenario")
+        for i, s in enumerate(self.scenarios):
+            if s not in SCENARIOS:
+                raise bad_value(f"{path}.scenarios[{i}]", s,
+                                "one of " + ", ".join(repr(c) for c in SCENARIOS))
+        if len(set(self.scenarios)) != len(self.scenarios):
+            raise bad_value(f"{path}.scenarios", list(self.scenarios), "no repeated scenario")
+        if self.attack_end_fraction <= self.attack_start_fraction:
+            raise bad_value(f"{path}.attack_end_fraction", self.attack_end_fraction,
+                            f"a value > attack_start_fraction ({self.attack_start_fraction})")
+
+    def attack_points(self, num_points: int):
+        """[num_points] bool, the attack window of a trajectory of ``num_points`` points."""
+        import numpy as np
+
+        i = np.arange(num_points)
+        lo = int(np.floor(self.attack_start_fraction * num_points))
+        hi = int(np.floor(self.attack_end_fraction * num_points))
+        return (i >= lo) & (i < hi)
+
+
+@dataclass(frozen=True)
 class Config:
     """veriloc-rt run configuration."""
 
@@ -157,6 +243,11 @@ class Config:
     propagation: PropagationConfig = section(PropagationConfig, "propagation model")
     nr: NRConfig = section(NRConfig, "NR PRS waveform and OFDM sampling (TS 38.211)")
     security: SecurityConfig = section(SecurityConfig, "PRS encryption and authentication tags")
+    channel: ChannelConfig = section(ChannelConfig, "link application: powers, noise, domain")
+    receiver: ReceiverConfig = section(ReceiverConfig, "ToA, AoA, tags and uplink receivers")
+    detectors: DetectorsConfig = section(DetectorsConfig, "the five per-point detectors")
+    threats: ThreatsConfig = section(ThreatsConfig, "the adversary of each attack scenario")
+    run: RunConfig = section(RunConfig, "scenarios, attack window and outcome threshold")
 
     def validate(self, path: str) -> None:
         if len(self.security.encrypted) != self.nr.num_bs:

@@ -1,7 +1,11 @@
-"""The main job: geometry -> propagation -> results on disk.
+"""The main job: geometry -> propagation -> per-point chain and detectors -> results on disk.
 
-At this stage of the product the run builds the scene and the trajectories, ray-traces (or
-draws) every link, and writes a propagation summary, ``run.json`` and a top-view plot.
+:func:`run` builds the scene and trajectories, ray-traces (or draws) every link once, then
+evaluates each configured scenario (``none``, ``fbs``, ``meaconing``, ``jamming``) point by
+point with :class:`~veriloc_rt.run_points.ScenarioRunner`, writing each row to
+``<scenario>_results.csv`` as soon as it exists. ``resume=True`` keeps the rows already on disk
+(the config must be the one that produced them) and continues after them; the result is the
+same as an uninterrupted run. At the end it writes ``metrics.json``, ``run.json`` and the plots.
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ from typing import Callable
 import numpy as np
 
 from .config import Config, config_to_dict
+from .errors import InputError
 from .propagation.raytrace import Propagation
+from .rng import stream
 from .scenario import Geometry, build_geometry
 
 log = logging.getLogger(__name__)
@@ -28,7 +34,10 @@ Progress = Callable[[str, int, int], None]
 
 @dataclass(frozen=True, eq=False)
 class Results:
-    """What a run produced."""
+    """What a run produced.
+
+    rows : {scenario: list of PointRow}; metrics : the content of ``metrics.json``
+    """
 
     config: Config
     geometry: Geometry
@@ -36,11 +45,13 @@ class Results:
     summary: dict
     timing_s: dict = field(default_factory=dict)
     out_dir: Path | None = None
+    rows: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
 
 
 def package_versions() -> dict:
     names = ("veriloc-rt", "sionna-rt", "mitsuba", "drjit", "numpy", "scipy", "trimesh",
-             "cryptography")
+             "cryptography", "ldpc")
     out = {"python": platform.python_version()}
     for n in names:
         try:
@@ -63,30 +74,25 @@ def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | No
     return trace(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir)
 
 
-def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None) -> Results:
-    """Run the configured scenario; with ``out_dir``, write the scene, summary and plots there."""
+def run_keys(cfg: Config, num_bs: int) -> dict:
+    """Key material of every BS: the config's key files, else simulated keys from the seed."""
+    from .security.keys import load_keys, simulated_keys
+
+    if cfg.security.keys_dir:
+        return load_keys(cfg.security.keys_dir, range(num_bs))
+    return simulated_keys(range(num_bs), stream(cfg.seed, "keys"), aes_bits=cfg.security.aes_key_bits)
+
+
+def propagation_summary(geometry: Geometry, prop: Propagation) -> dict:
     from .report.propagation_summary import summarize
 
-    timing = {}
-    t0 = time.perf_counter()
-    out = Path(out_dir) if out_dir is not None else None
-    scene_dir = (out / "scene") if out else Path(".veriloc-scene")
-    geometry = build_geometry(cfg, scene_dir)
-    if cfg.security.keys_dir:  # bad key files fail now, before any tracing
-        from .security.keys import load_keys
-
-        load_keys(cfg.security.keys_dir, range(len(geometry.bs_pos)))
-    timing["geometry"] = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    prop = compute_propagation(cfg, geometry, progress)
-    timing["propagation"] = time.perf_counter() - t1
-    summary = {
+    scene = geometry.scene
+    return {
         "num_points": geometry.num_points,
         "num_bs": int(len(geometry.bs_pos)),
-        "num_buildings": getattr(geometry.scene, "num_buildings", None),
-        "num_triangles": int(geometry.scene.box_meshes()[1].shape[0]
-                             if hasattr(geometry.scene, "box_meshes")
-                             else geometry.scene.triangles.shape[0]),
+        "num_buildings": getattr(scene, "num_buildings", None),
+        "num_triangles": int(scene.box_meshes()[1].shape[0] if hasattr(scene, "box_meshes")
+                             else scene.triangles.shape[0]),
         "ue_path_length_m": float(geometry.ue.s[-1] - geometry.ue.s[0]),
         "ue_speed_mps_mean": float(np.linalg.norm(geometry.ue.vel, axis=1).mean()),
         "bs_to_ue": summarize(prop.bs_ue),
@@ -94,15 +100,116 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
         "adversary_to_ue": summarize(prop.adv_ue),
         "raytrace_stats": prop.stats,
     }
-    timing["total"] = time.perf_counter() - t0
-    if out:
-        from .report.scene_plot import plot_top_view
 
+
+def _check_resume(out: Path, cfg: Config) -> None:
+    info = out / "run.json"
+    if not info.exists():
+        raise InputError("--resume", f"no run.json in {out}: nothing to resume (run without --resume)")
+    try:
+        saved = json.loads(info.read_text())["config"]
+    except (ValueError, KeyError):
+        raise InputError("--resume", f"{info} is not a veriloc-rt run.json") from None
+    if saved != json.loads(json.dumps(config_to_dict(cfg))):
+        raise InputError("--resume", f"the results in {out} were produced by a different config "
+                         "(or --points/--seed); resume with the same ones or use a new --out")
+
+
+def _write_run_json(out: Path, cfg: Config, timing: dict, geometry: Geometry, status: str) -> None:
+    info = {"config": config_to_dict(cfg), "seed": cfg.seed, "status": status,
+            "versions": package_versions(), "timing_s": timing,
+            "scene_xml": str(geometry.scene_xml)}
+    tmp = out / "run.json.tmp"
+    tmp.write_text(json.dumps(info, indent=2))
+    tmp.replace(out / "run.json")
+
+
+def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
+        resume: bool = False) -> Results:
+    """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
+
+    :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
+    :param resume: keep the rows already in ``out_dir`` and continue after them
+    """
+    from .report.results import ResultsWriter, read_rows, results_path, scenario_metrics
+    from .run_points import ScenarioRunner
+
+    timing: dict = {}
+    t0 = time.perf_counter()
+    out = Path(out_dir) if out_dir is not None else None
+    if resume:
+        if out is None:
+            raise ValueError("Argument `resume` needs `out_dir`")
+        _check_resume(out, cfg)
+    scene_dir = (out / "scene") if out else Path(".veriloc-scene")
+    geometry = build_geometry(cfg, scene_dir)
+    keys = run_keys(cfg, len(geometry.bs_pos))  # bad key files fail now, before any tracing
+    timing["geometry"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    prop = compute_propagation(cfg, geometry, progress)
+    timing["propagation"] = time.perf_counter() - t1
+    summary = propagation_summary(geometry, prop)
+    if out:
         out.mkdir(parents=True, exist_ok=True)
-        plot_top_view(geometry, out / "scene_top_view.png")
         (out / "propagation_summary.json").write_text(json.dumps(summary, indent=2))
-        run_info = {"config": config_to_dict(cfg), "seed": cfg.seed,
-                    "versions": package_versions(), "timing_s": timing,
-                    "scene_xml": str(geometry.scene_xml)}
-        (out / "run.json").write_text(json.dumps(run_info, indent=2))
-    return Results(cfg, geometry, prop, summary, timing, out)
+        _write_run_json(out, cfg, timing, geometry, "running")
+
+    runner = ScenarioRunner(cfg, geometry, prop, keys)
+    n = geometry.num_points
+    rows: dict = {}
+    metrics: dict = {"scenarios": {}}
+    for scenario in cfg.run.scenarios:
+        t_s = time.perf_counter()
+        runner.reset()
+        done: list = []
+        if resume and results_path(out, scenario).exists():
+            done = read_rows(results_path(out, scenario))[:n]
+            if [r.index for r in done] != list(range(len(done))):
+                raise InputError("--resume", f"{results_path(out, scenario)} is not a prefix of "
+                                 "this run's points; use a new --out")
+            runner.replay(done)
+            log.info("%s: resuming after %d of %d points", scenario, len(done), n)
+        writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
+        prev = done[-1].index if done else None
+        try:
+            for i in range(len(done), n):
+                row = runner.point(scenario, i, prev)
+                prev = i
+                done.append(row)
+                if writer:
+                    writer.write(row)
+                if progress:
+                    progress(scenario, i + 1, n)
+        finally:
+            if writer:
+                writer.close()
+        rows[scenario] = done
+        metrics["scenarios"][scenario] = scenario_metrics(done, scenario)
+        timing[f"scenario_{scenario}"] = time.perf_counter() - t_s
+    timing.update({f"{k}_total": v for k, v in runner.timing.items()})
+    timing["total"] = time.perf_counter() - t0
+    metrics["timing_s"] = timing
+    metrics["propagation_model"] = cfg.propagation.model
+    if out:
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+        _write_plots(out, cfg, geometry, metrics)
+        _write_run_json(out, cfg, timing, geometry, "complete")
+    return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
+
+
+def _write_plots(out: Path, cfg: Config, geometry: Geometry, metrics: dict) -> None:
+    from .report import plots
+    from .report.scene_plot import plot_top_view
+
+    plot_top_view(geometry, out / "scene_top_view.png")
+    plots.plot_outcomes(metrics, out / "outcomes.png")
+    plots.plot_detection_rates(metrics, out / "detection_rates.png")
+    window = cfg.run.attack_points(geometry.num_points)
+    idx = np.flatnonzero(window)
+    span = (int(idx[0]) + 1, int(idx[-1]) + 1) if idx.size else None
+    for scenario in cfg.run.scenarios:
+        data = plots.read_results_csv(out / f"{scenario}_results.csv")
+        plots.plot_time_series(data, out / f"{scenario}_timeseries.png",
+                               span if scenario != "none" else None, title=scenario)
+        plots.plot_trajectory_map(data, geometry.bs_pos, out / f"{scenario}_map.png",
+                                  adversary_xy=geometry.adversary.pos[:, :2], title=scenario)

@@ -1,0 +1,120 @@
+"""The four scenarios end to end: result files, metrics against the CSVs, attack physics, resume.
+
+Independent references:
+* metrics.json is recomputed here from the CSV rows with the paper's definitions (outcomes over
+  all points for 'none' and over the attack window for an attack; correct decisions = accepted
+  fixes when benign, rejected points under attack);
+* jamming: a 48 dBm jammer tens of metres away against <= 24 dBm BSs hundreds of metres away
+  leaves the PRS ~60 dB below the interference, beyond the ~41 dB correlation gain of a 10-slot
+  comb-6 frame, so every jammed point whose jammer link has a path is a service failure;
+* FBS: the spoofer's replica delays put the standard-PRS fix at the target, ``target_offset_m``
+  from the UE (the adversary's ideal estimate), so the error of a spoofed fix is that offset.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from veriloc_rt.config import config_from_dict
+from veriloc_rt.engine import run
+from veriloc_rt.report.results import CSV_COLUMNS
+from veriloc_rt.run_points import DETECTORS, OUTCOMES
+
+from .test_cli import ROOT, cli
+
+#: FBS target error: the multilateration of exact spoofed RSTDs lands within the receiver's
+#: noise-limited accuracy of the target (benign p95 ~1.5 m on UMa path loss); 5 m is 3x that
+FBS_TOL_M = 5.0
+
+
+def _csv(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def _pct(flags):
+    return 100.0 * sum(flags) / len(flags) if flags else None
+
+
+def check_run(res, out) -> None:
+    """Files, metrics recomputed from the CSVs, and the attack physics of a finished run."""
+    cfg = res.config
+    for name in ("metrics.json", "run.json", "outcomes.png", "detection_rates.png",
+                 "scene_top_view.png"):
+        assert (out / name).stat().st_size > 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    adv_path = res.propagation.adv_ue.valid.any(axis=(1, 2))          # [num_points]
+    for scenario in cfg.run.scenarios:
+        rows = _csv(out / f"{scenario}_results.csv")
+        assert tuple(rows[0].keys()) == CSV_COLUMNS
+        assert list(rows[0])[:6] == ["Time", "HMAC", "DigSig", "ABSA", "Handshake", "Tracking"]
+        assert len(rows) == res.geometry.num_points
+        m = metrics["scenarios"][scenario]
+        sel = rows if scenario == "none" else [r for r in rows if r["attack"] == "1"]
+        for k in OUTCOMES:
+            assert m["outcomes"][k] == pytest.approx(_pct([r["outcome"] == k for r in sel]))
+        for d in DETECTORS:
+            if scenario == "none":
+                fixes = [r for r in sel if r["outcome"] != "service_failure"]
+                want = _pct([r[d] == "1" for r in fixes])
+            else:
+                want = _pct([r[d] == "0" for r in sel])
+            assert m["correct_decision_rate"][d] == pytest.approx(want)
+        for r in sel:
+            i = int(r["index"])
+            if scenario == "jamming" and adv_path[i]:
+                assert r["outcome"] == "service_failure", f"jammed point {i} kept a fix"
+        if scenario == "fbs":
+            err = np.array([float(r["error_m"]) for r in sel
+                            if r["outcome"] != "service_failure" and adv_path[int(r["index"])]])
+            assert err.size > 0
+            off = cfg.threats.fbs.target_offset_m
+            assert np.median(np.abs(err - off)) < FBS_TOL_M
+        assert (out / f"{scenario}_timeseries.png").stat().st_size > 0
+
+
+def test_uma_four_scenarios_and_resume(tmp_path):
+    cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                            "trajectory": {"num_points": 12}, "seed": 5})
+    full = run(cfg, tmp_path / "full")
+    check_run(full, tmp_path / "full")
+    # an interrupted run: 'none' finished, 'fbs' stopped after 7 points (with a torn last line),
+    # nothing after; --resume must end with exactly the uninterrupted files
+    part = tmp_path / "part"
+    run(cfg, part)
+    lines = (part / "fbs_results.csv").read_text().splitlines(keepends=True)
+    (part / "fbs_results.csv").write_text("".join(lines[:8]) + lines[8][:15])
+    for s in ("meaconing", "jamming"):
+        (part / f"{s}_results.csv").unlink()
+    (part / "metrics.json").unlink()
+    resumed = run(cfg, part, resume=True)
+    for s in cfg.run.scenarios:
+        assert (part / f"{s}_results.csv").read_bytes() == (tmp_path / "full" / f"{s}_results.csv").read_bytes()
+    assert resumed.metrics["scenarios"] == full.metrics["scenarios"]
+
+
+def test_resume_refuses_another_config(tmp_path):
+    cfg = {"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+           "trajectory": {"num_points": 4}, "run": {"scenarios": ["none"]}}
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps(cfg))
+    assert cli("run", f, "--out", tmp_path / "o").returncode == 0
+    r = cli("run", f, "--out", tmp_path / "o", "--resume", "--seed", "9")
+    assert r.returncode == 2 and r.stderr.startswith("error: --resume: ")
+    assert len(r.stderr.strip().splitlines()) == 1
+    r = cli("run", f, "--out", tmp_path / "empty", "--resume")
+    assert r.returncode == 2 and "nothing to resume" in r.stderr
+
+
+@pytest.mark.raytrace
+def test_raytraced_tiny_canyon_four_scenarios(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    data = json.loads((ROOT / "configs" / "ci-tiny.json").read_text())
+    data["trajectory"]["num_points"] = 16
+    cfg = config_from_dict(data)
+    res = run(cfg, tmp_path / "r")
+    check_run(res, tmp_path / "r")

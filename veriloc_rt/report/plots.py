@@ -1,0 +1,322 @@
+"""Result figures: outcome and detection-rate bars, per-point time series, trajectory map.
+
+Inputs are what the engine writes: ``<scenario>_results.csv`` (read with :func:`read_results_csv`)
+and the ``metrics.json`` dict ``{"scenarios": {scenario: {"outcomes": .., "outcomes_encrypted": ..,
+"correct_decision_rate": .., "position_error_m": ..}}}`` with values in percent. The figures follow
+the paper's Fig. "encrypted_PRS", Fig. "techniques" and Fig. "all_attacks".
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from veriloc_rt.errors import InputError, bad_value
+
+log = logging.getLogger(__name__)
+
+DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
+COLUMNS = ("Time",) + DETECTORS + ("x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
+                                   "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc",
+                                   "outcome_enc")
+STR_COLUMNS = ("outcome", "outcome_enc")
+INT_COLUMNS = ("index",)
+OUTCOMES = ("success", "large_error", "service_failure")
+
+_SCENARIO_LABELS = {"none": "No Attack", "fbs": "FBS", "meaconing": "Meaconing",
+                    "jamming": "Jamming"}
+_DETECTOR_STYLE = {  # display label, colour (the paper's pgfplots colours)
+    "HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
+    "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
+    "Tracking": ("Tracking", (0.3, 0.3, 0.3))}
+_OUTCOME_COLOURS = {"success": (0.0, 0.6, 0.0), "large_error": (1.0, 0.3, 0.3),
+                    "service_failure": (0.75, 0.75, 0.75)}
+
+
+@contextmanager
+def _figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), **kw):
+    """Yield ``(fig, axes)`` on the Agg backend; on a clean exit add ``title``, save, log.
+
+    The figure is closed in every case. ``kw`` goes to ``plt.subplots``.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(nrows, 1, figsize=figsize, dpi=110, layout="constrained", **kw)
+    try:
+        yield fig, axes
+        if title:
+            fig.suptitle(title)
+        fig.savefig(Path(path))
+        log.info("wrote %s", path)
+    finally:
+        plt.close(fig)
+
+
+def _scenarios(metrics: dict, key: str) -> list[tuple[str, dict]]:
+    """``(scenario, metrics["scenarios"][scenario][key])`` in the canonical order, present only."""
+    if not isinstance(metrics, dict) or not isinstance(metrics.get("scenarios", {}), dict):
+        raise TypeError(f"Argument `metrics` must be a dict with a 'scenarios' dict, "
+                        f"not {type(metrics).__name__}")
+    sc = metrics.get("scenarios", {})
+    order = [s for s in _SCENARIO_LABELS if s in sc] + [s for s in sc if s not in _SCENARIO_LABELS]
+    return [(s, sc[s][key]) for s in order if isinstance(sc[s], dict) and sc[s].get(key)]
+
+
+def _percent_axis(ax, top: float, ylabel: str, has_data: bool, ncols: int) -> None:
+    """0..100 % y axis with head room up to ``top``; legend above the axes, or "no data"."""
+    ax.set_ylim(0.0, top)
+    ax.set_yticks(np.arange(0, 101, 20))
+    ax.set_ylabel(ylabel)
+    ax.grid(axis="y", ls="--", alpha=0.3)
+    if has_data:
+        ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncols=ncols, fontsize=8,
+                  frameon=False)
+    else:
+        ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center")
+
+
+def _value(d: dict, key: str) -> float:
+    """``d[key]`` as float, NaN when missing or None."""
+    v = d.get(key)
+    return float("nan") if v is None else float(v)
+
+
+def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
+                  threshold_m: float = 15.0) -> Path:
+    """Stacked outcome bars per scenario: standard PRS group, then encrypted PRS group.
+
+    Success green, large error red, service failure gray (paper Fig. "encrypted_PRS"). The
+    encrypted group is left out when no scenario has ``outcomes_encrypted``; missing or None
+    shares are drawn as 0.
+
+    :param threshold_m: success threshold, m, only used in the legend label
+    """
+    groups = [(name, _scenarios(metrics, key)) for name, key in
+              (("Standard PRS", "outcomes"), ("Encrypted PRS", "outcomes_encrypted"))]
+    groups = [g for g in groups if g[1]]
+    labels = {"success": f"Success (error ≤ {threshold_m:g} m)",
+              "large_error": f"Large error / spoofing (> {threshold_m:g} m)",
+              "service_failure": "Service failure"}
+    path = Path(path)
+    with _figure(path, title, figsize=(8.0, 5.0)) as (_, ax):
+        ticks, ticklabels, start = [], [], 0.0
+        for gi, (name, entries) in enumerate(groups):
+            x = start + np.arange(len(entries), dtype=float)
+            bottom = np.zeros(len(entries))
+            for o in OUTCOMES:
+                h = np.nan_to_num([_value(e, o) for _, e in entries])
+                ax.bar(x, h, 0.7, bottom=bottom, color=_OUTCOME_COLOURS[o], edgecolor="k",
+                       label=labels[o] if gi == 0 else None)
+                bottom += h
+            centre = start + (len(entries) - 1) / 2.0
+            ax.text(centre, 104.0, name, ha="center", va="bottom", fontweight="bold")
+            if gi > 0:
+                ax.axvline(start - 0.75, color="k", lw=1.5)
+            ticks += list(x)
+            ticklabels += [_SCENARIO_LABELS.get(s, s) for s, _ in entries]
+            start += len(entries) + 0.5
+        ax.set_xticks(ticks, ticklabels, rotation=30, ha="right")
+        _percent_axis(ax, 112.0, "Percentage of outcomes [%]", bool(groups), ncols=3)
+    return path
+
+
+def plot_detection_rates(metrics: dict, path: str | Path, title: str | None = None,
+                         reference: dict | None = None) -> Path:
+    """Grouped correct-decision-rate bars: x = scenario, one bar per detector, values written on.
+
+    Undefined (None) rates get no bar and an "n/a" label. ``reference`` ({scenario: {detector:
+    percent}}, e.g. the paper's Fig. "techniques") is drawn as dashed black outlines labelled
+    "paper".
+    """
+    entries = _scenarios(metrics, "correct_decision_rate")
+    reference = reference or {}
+    if not isinstance(reference, dict):
+        raise TypeError(f"Argument `reference` must be a dict or None, "
+                        f"not {type(reference).__name__}")
+    width = 0.16
+    path = Path(path)
+    with _figure(path, title, figsize=(9.0, 4.5)) as (_, ax):
+        x = np.arange(len(entries), dtype=float)
+        offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
+        xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
+        vals = np.array([[_value(e, d) for _, e in entries] for d in DETECTORS])
+        refs = np.array([[_value(reference.get(s) or {}, d) for s, _ in entries]
+                         for d in DETECTORS])
+        for det, xk, vk in zip(DETECTORS, xs, vals):
+            label, colour = _DETECTOR_STYLE[det]
+            ax.bar(xk, np.nan_to_num(vk), width, color=colour, label=label)
+        ref = np.isfinite(refs)
+        if ref.any():
+            ax.bar(xs[ref], refs[ref], width, fill=False, edgecolor="k", ls="--", lw=0.8,
+                   label="paper")
+        for xi, v, r in zip(xs.ravel(), vals.ravel(), refs.ravel()):
+            ax.text(xi, np.nanmax([0.0, v, r]) + 1.0, "n/a" if np.isnan(v) else f"{v:.1f}",
+                    rotation=90, ha="center", va="bottom", fontsize=6)
+        ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s, _ in entries])
+        ax.set_xlim(-0.6, max(len(entries), 1) - 0.4)
+        _percent_axis(ax, 118.0, "Correct decision rate [%]", bool(entries), ncols=6)
+    return path
+
+
+def _columns(rows: dict, names) -> list[np.ndarray]:
+    """``rows[name]`` for each name as 1-D arrays of one common length."""
+    if not isinstance(rows, dict):
+        raise TypeError(f"Argument `rows` must be a dict of column arrays, "
+                        f"not {type(rows).__name__}")
+    missing = [n for n in names if n not in rows]
+    if missing:
+        raise InputError("rows", f"missing column(s) {', '.join(missing)}")
+    cols = [np.asarray(rows[n]).ravel() for n in names]
+    if len({len(c) for c in cols}) > 1:
+        raise InputError("rows", f"columns {', '.join(names)} differ in length "
+                         f"{[len(c) for c in cols]}")
+    return cols
+
+
+def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int] | None,
+                     title: str | None = None, threshold_m: float = 15.0) -> Path:
+    """Five valid/invalid step panels (one per detector) and an error panel over the trajectory.
+
+    x is the 1-based trajectory point (``index + 1``, paper Fig. "all_attacks"). The error panel
+    has a log y axis, gaps where there was no fix, and the success threshold as a dashed line.
+
+    :param rows: column name -> [num_points] array, as from :func:`read_results_csv`
+    :param attack_window: ``(start, stop)`` 0-based points, stop excluded (as
+        ``RunConfig.attack_points``), shaded red; None for no shading
+    :param threshold_m: success threshold, m
+    """
+    *dets, err = _columns(rows, DETECTORS + ("error_m",))
+    idx = np.asarray(rows["index"]).ravel() if "index" in rows else np.arange(len(err))
+    if len(idx) != len(err):
+        raise InputError("rows", f"column index has {len(idx)} entries, expected {len(err)}")
+    if attack_window is not None:
+        ok = (isinstance(attack_window, (tuple, list)) and len(attack_window) == 2
+              and all(isinstance(a, (int, np.integer)) for a in attack_window))
+        if not ok or not 0 <= attack_window[0] <= attack_window[1]:
+            raise bad_value("attack_window", attack_window, "(start, stop) ints, 0 <= start <= stop")
+    x = idx.astype(float) + 1.0
+    err = np.maximum(err.astype(float), 1e-2)  # log axis: a zero error sits at 1 cm
+    path = Path(path)
+    with _figure(path, title, nrows=6, figsize=(10.0, 9.0), sharex=True,
+                 height_ratios=[1] * 5 + [1.6]) as (_, axes):
+        for ax, det, y in zip(axes, DETECTORS, dets):
+            label, colour = _DETECTOR_STYLE[det]
+            ax.step(x, y.astype(float), where="post", color=colour, lw=1.8)
+            ax.set_ylim(-0.2, 1.2)
+            ax.set_yticks([0, 1], ["Invalid", "Valid"])
+            ax.set_ylabel(label)
+        ax = axes[-1]
+        ax.plot(x, err, ".-", color="k", ms=2, lw=0.6, label="position error")
+        ax.axhline(threshold_m, color="tab:red", ls="--", lw=1.0, label=f"{threshold_m:g} m")
+        ax.set_yscale("log")
+        finite = err[np.isfinite(err)]
+        ax.set_ylim(min(finite.min(initial=threshold_m), threshold_m) / 2.0,
+                    max(finite.max(initial=threshold_m), threshold_m) * 2.0)
+        ax.set_ylabel("error [m]")
+        ax.set_xlabel("Trajectory point")
+        ax.legend(loc="upper right", fontsize=7)
+        ax.set_xlim(0.0, max(x.max(initial=1.0), 1.0))
+        if attack_window is not None:
+            for a in axes:
+                a.axvspan(attack_window[0] + 0.5, attack_window[1] + 0.5, color="red",
+                          alpha=0.15, lw=0)
+    return path
+
+
+def _xy(arr, name: str) -> np.ndarray:
+    """[n, 2] float64 from an [n, 2] or [n, 3] array-like named ``name``."""
+    a = np.asarray(arr, dtype=float)
+    if a.ndim != 2 or a.shape[1] not in (2, 3):
+        raise bad_value(name, f"array of shape {a.shape}", "shape [n, 2] or [n, 3]")
+    return a[:, :2]
+
+
+def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
+                        title: str | None = None, margin_m: float = 50.0) -> Path:
+    """Top view: true path, estimates coloured by outcome, BSs (triangles), adversary (orange).
+
+    The view is the bounding box of the true path, the BSs and the adversary plus ``margin_m``;
+    estimates beyond it (spoofed outliers) are drawn on its edge with an "X" marker.
+
+    :param bs_pos: [num_bs, 3] or [num_bs, 2] float, m
+    :param adversary_xy: [num_points, 2] or [num_points, 3] float, m, optional
+    :param margin_m: view margin, m
+    """
+    xt, yt, xe, ye, outcome = _columns(rows, ("x_true", "y_true", "x_est", "y_est", "outcome"))
+    bs = _xy(bs_pos, "bs_pos")
+    adv = _xy(adversary_xy, "adversary_xy") if adversary_xy is not None else np.zeros((0, 2))
+    true = np.stack([xt, yt], axis=-1).astype(float)
+    est = np.stack([xe, ye], axis=-1).astype(float)
+    pts = np.concatenate([true, bs, adv])
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    lo = (pts.min(axis=0) if len(pts) else np.zeros(2)) - margin_m
+    hi = (pts.max(axis=0) if len(pts) else np.zeros(2)) + margin_m
+    has_fix = np.isfinite(est).all(axis=1)
+    inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
+    path = Path(path)
+    with _figure(path, title, figsize=(8.0, 8.0)) as (_, ax):
+        ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
+        for o in OUTCOMES[:2]:
+            sel = outcome == o
+            colour = _OUTCOME_COLOURS[o]
+            ax.plot(est[sel & inside, 0], est[sel & inside, 1], ".", color=colour, ms=4,
+                    label=f"estimate: {o.replace('_', ' ')} ({int(np.sum(sel & has_fix))})")
+            out = np.clip(est[sel & has_fix & ~inside], lo, hi)
+            ax.plot(out[:, 0], out[:, 1], "X", color=colour, mec="k", mew=0.5, ms=7)
+        n_out = int(np.sum(has_fix & ~inside))
+        if n_out:
+            ax.plot([], [], "X", color="w", mec="k", ms=7, label=f"beyond view, at edge ({n_out})")
+        if len(adv):
+            ax.plot(adv[:, 0], adv[:, 1], ".", color="tab:orange", ms=3, label="adversary")
+        ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label="BSs")
+        pad = 0.02 * (hi - lo).max()  # keeps the edge markers inside the axes
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (east) [m]")
+        ax.set_ylabel("y (north) [m]")
+        ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    return path
+
+
+def read_results_csv(path: str | Path) -> dict[str, np.ndarray]:
+    """Read ``<scenario>_results.csv`` into ``{column: [num_points] array}``.
+
+    ``outcome`` and ``outcome_enc`` are str arrays, ``index`` int64, every other column float64
+    with NaN for an empty or 'nan' cell. A header-only (or empty) file gives length-0 arrays.
+
+    :raises InputError: naming the file and line for a ragged row or a non-numeric cell
+    """
+    path = Path(path)
+    with open(path, newline="") as fh:
+        lines = list(csv.reader(fh))
+    header = [h.strip() for h in lines[0]] if lines else list(COLUMNS)
+    cols: dict[str, list] = {h: [] for h in header}
+    for line, row in enumerate(lines[1:], start=2):
+        if not any(c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"{path}:{line}", f"{len(row)} columns, expected {len(header)}")
+        for h, c in zip(header, row):
+            c = c.strip()
+            if h in STR_COLUMNS:
+                cols[h].append(c)
+                continue
+            try:
+                cols[h].append(float(c) if c else np.nan)
+            except ValueError:
+                raise InputError(f"{path}:{line}", f"column {h}: non-numeric value {c!r}") from None
+    out: dict[str, np.ndarray] = {}
+    for h, vals in cols.items():
+        if h in STR_COLUMNS:
+            out[h] = np.array(vals, dtype=str)
+        else:
+            a = np.array(vals, dtype=float)
+            out[h] = a.astype(np.int64) if h in INT_COLUMNS and np.isfinite(a).all() else a
+    return out

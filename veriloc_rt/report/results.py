@@ -1,0 +1,158 @@
+"""Per-scenario result files and the metrics computed from them.
+
+``<scenario>_results.csv`` (DESIGN.md, "Files written by run"): the first columns are exactly
+``Time,HMAC,DigSig,ABSA,Handshake,Tracking`` (1 valid, 0 invalid), as the paper's figures read
+them, then ``x_true,y_true,x_est,y_est,error_m,outcome``, then ``index,attack`` and the
+encrypted-PRS fix ``x_est_enc,y_est_enc,error_m_enc,outcome_enc``. Floats are written with
+``repr`` (shortest exact round trip), so a resumed run replays the saved fixes bit for bit.
+A row is flushed as soon as it exists: an interrupted run keeps every finished point.
+
+Metrics (paper Sec. "Results and Discussion"):
+
+* ``outcomes`` [%]: success / large_error / service_failure over the *evaluated points*: every
+  point for ``none``, the attack window for an attack (the paper's FBS bar, 0.67 % success,
+  counts the attack phase only);
+* ``correct_decision_rate`` [%] per detector: for ``none`` the share of points *with a fix*
+  that the detector accepts (false alarms exclude DoS points, as the paper defines them); for
+  an attack the share of attack-window points that the detector rejects;
+* ``position_error_m``: p50 / p95 / p99.9 of the horizontal error over the evaluated points
+  that have a fix.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..run_points import DETECTORS, OUTCOMES, PointRow
+
+__all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "scenario_metrics", "results_path"]
+
+CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
+               "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc")
+
+
+def results_path(out_dir: str | Path, scenario: str) -> Path:
+    return Path(out_dir) / f"{scenario}_results.csv"
+
+
+def _f(x) -> str:
+    """Exact float text; '' for NaN/None (no fix)."""
+    if x is None:
+        return ""
+    x = float(x)
+    return "" if math.isnan(x) else repr(x)
+
+
+def _p(text: str) -> float:
+    return float(text) if text not in ("", "nan") else float("nan")
+
+
+def row_to_fields(r: PointRow) -> list[str]:
+    enc = r.est_xy_enc if r.est_xy_enc is not None else (None, None)
+    return ([repr(float(r.time_s))] + [str(int(bool(r.verdicts[d]))) for d in DETECTORS]
+            + [_f(r.true_xy[0]), _f(r.true_xy[1]), _f(r.est_xy[0]), _f(r.est_xy[1]),
+               _f(r.error_m), r.outcome, str(r.index), str(int(r.attack)),
+               _f(enc[0]), _f(enc[1]), _f(r.error_m_enc), r.outcome_enc or ""])
+
+
+def fields_to_row(f: dict) -> PointRow:
+    enc = f["outcome_enc"] != ""
+    return PointRow(
+        index=int(f["index"]), time_s=float(f["Time"]), attack=f["attack"] == "1",
+        verdicts={d: f[d] == "1" for d in DETECTORS},
+        true_xy=np.array([_p(f["x_true"]), _p(f["y_true"])]),
+        est_xy=np.array([_p(f["x_est"]), _p(f["y_est"])]), error_m=_p(f["error_m"]),
+        outcome=f["outcome"],
+        est_xy_enc=np.array([_p(f["x_est_enc"]), _p(f["y_est_enc"])]) if enc else None,
+        error_m_enc=_p(f["error_m_enc"]) if enc else None, outcome_enc=f["outcome_enc"] or None)
+
+
+def read_rows(path: str | Path) -> list[PointRow]:
+    """The complete rows of a results CSV (a torn last line, from a kill mid-write, is dropped).
+
+    :raises ValueError: if the header is not :data:`CSV_COLUMNS`
+    """
+    text = Path(path).read_text()
+    if not text.endswith("\n"):  # torn last line
+        text = text[: text.rfind("\n") + 1]
+    reader = csv.DictReader(io.StringIO(text))
+    if tuple(reader.fieldnames or ()) != CSV_COLUMNS:
+        raise ValueError(f"{path}: header {reader.fieldnames} is not {list(CSV_COLUMNS)}")
+    return [fields_to_row(f) for f in reader]
+
+
+class ResultsWriter:
+    """Appends rows to a scenario's CSV, one flushed line per point.
+
+    :param keep: rows already on disk to keep (resume); the file is rewritten with exactly these
+        first, which also drops a torn last line
+    """
+
+    def __init__(self, path: str | Path, keep: list[PointRow] | None = None):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = self.path.with_suffix(".csv.tmp")
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(CSV_COLUMNS)
+            for r in keep or ():
+                w.writerow(row_to_fields(r))
+        os.replace(tmp, self.path)
+        self._fh = open(self.path, "a", newline="")
+        self._w = csv.writer(self._fh, lineterminator="\n")
+
+    def write(self, row: PointRow) -> None:
+        self._w.writerow(row_to_fields(row))
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _pct(mask: np.ndarray, of: np.ndarray) -> float | None:
+    n = int(of.sum())
+    return float(100.0 * (mask & of).sum() / n) if n else None
+
+
+def _outcomes(outcome: list[str], sel: np.ndarray) -> dict:
+    o = np.asarray(outcome, dtype=object)
+    return {k: _pct(o == k, sel) for k in OUTCOMES}
+
+
+def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
+    """Outcomes, correct-decision rates and position-error percentiles of one scenario."""
+    if not rows:
+        return {"num_points": 0, "num_evaluated": 0}
+    attack = np.array([r.attack for r in rows])
+    sel = np.ones(len(rows), bool) if scenario == "none" else attack
+    fix = np.array([r.outcome != "service_failure" for r in rows])
+    out = {"num_points": len(rows), "num_evaluated": int(sel.sum()),
+           "outcomes": _outcomes([r.outcome for r in rows], sel)}
+    if all(r.outcome_enc is not None for r in rows):
+        out["outcomes_encrypted"] = _outcomes([r.outcome_enc for r in rows], sel)
+    rates = {}
+    for d in DETECTORS:
+        valid = np.array([r.verdicts[d] for r in rows])
+        rates[d] = _pct(valid, sel & fix) if scenario == "none" else _pct(~valid, sel)
+    out["correct_decision_rate"] = rates
+    err = np.array([r.error_m for r in rows])[sel & fix]
+    out["position_error_m"] = ({k: float(np.percentile(err, q)) for k, q in
+                                (("p50", 50), ("p95", 95), ("p999", 99.9))} if err.size else
+                               {"p50": None, "p95": None, "p999": None})
+    if scenario != "none":  # the benign phases of an attack run (false alarms around the attack)
+        ben = ~attack & fix
+        out["benign_phase_false_alarm_rate"] = {
+            d: _pct(~np.array([r.verdicts[d] for r in rows]), ben) for d in DETECTORS}
+    return out

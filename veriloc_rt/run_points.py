@@ -1,0 +1,207 @@
+"""One scenario over the trajectory: chain calls, the five detectors and the outcome per point.
+
+:class:`ScenarioRunner` is configured once per run (config, geometry, propagation, keys) and
+called per scenario; it yields one :class:`PointRow` per trajectory point, which the engine
+writes to the scenario's CSV as soon as it exists.
+
+Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted``):
+
+1. the adversary transmits only in the attack window (``run.attack_points``) and only in an
+   attack scenario; its grid comes from :class:`~veriloc_rt.run_adversary.AdversarySignal`;
+2. the chain runs with the noise stream ``stream(seed, "noise", mode, i)``, the same in every
+   scenario (common random numbers: a benign point gives the same chain result in every
+   scenario, so it is computed once per run and reused); the adversary's own draws come from
+   ``stream(seed, "adversary", scenario, mode, i)``;
+3. detectors (standard PRS only, as the paper evaluates them):
+
+   * HMAC: :class:`TagDetector` on the chain's tag checks (``security.tag_scheme`` should be
+     'hmac'); DigSig: the same rule on a second, DS-tagged chain call with the same noise and
+     adversary draws (``run.digsig='separate'``), or on the HMAC run's checks ('shared');
+   * ABSA: the AoA per BS, resolved against and compared with the azimuth from the *last
+     validated position* (the Kalman tracker's position after its last accepted fix; before the
+     first one, the current DL fix);
+   * Handshake: DL fix against UL fix; Tracking: the Kalman tracker on the DL fix.
+
+4. outcome: ``success`` (fix ok and horizontal error <= ``run.success_threshold_m``),
+   ``large_error`` (fix ok, error above), ``service_failure`` (no fix: fewer than 3 BSs heard or
+   the solver failed).
+
+Resume: the tracker (the only state) is rebuilt by replaying the saved rows' DL fixes
+(:meth:`ScenarioRunner.replay`); the CSV stores them at full float precision, so the replay is
+exact and a resumed run ends with the same rows as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Config
+from .detectors import ABSADetector, HandshakeDetector, KalmanTracker, TagDetector
+from .receiver.chain import ChainResult, PositioningChain
+from .rng import stream
+from .run_adversary import AdversarySignal
+
+log = logging.getLogger(__name__)
+
+__all__ = ["PointRow", "ScenarioRunner", "DETECTORS", "OUTCOMES", "outcome_of"]
+
+DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
+OUTCOMES = ("success", "large_error", "service_failure")
+_MODES = ("standard", "encrypted")
+
+
+@dataclass
+class PointRow:
+    """One trajectory point of one scenario (a CSV row).
+
+    time_s : float, s; verdicts : {detector: bool} (True valid); attack : bool
+    true_xy, est_xy : [2] float64, m (est NaN without a fix); error_m : float (NaN without a fix)
+    outcome : str; the ``*_enc`` fields: the same for encrypted PRS (None when not evaluated)
+    """
+
+    index: int
+    time_s: float
+    attack: bool
+    verdicts: dict
+    true_xy: np.ndarray
+    est_xy: np.ndarray
+    error_m: float
+    outcome: str
+    est_xy_enc: np.ndarray | None = None
+    error_m_enc: float | None = None
+    outcome_enc: str | None = None
+
+
+def outcome_of(fix_ok: bool, error_m: float, threshold_m: float) -> str:
+    """'success', 'large_error' or 'service_failure' (paper Fig. "encrypted_PRS")."""
+    if not fix_ok:
+        return "service_failure"
+    return "success" if error_m <= threshold_m else "large_error"
+
+
+class ScenarioRunner:
+    """Chains, adversary and detectors of one run.
+
+    :param cfg: run config; geometry, propagation: from the engine; keys: by BS id
+    """
+
+    def __init__(self, cfg: Config, geometry, propagation, keys):
+        self.cfg, self.geo, self.prop = cfg, geometry, propagation
+        self.window = cfg.run.attack_points(geometry.num_points)
+        nbs = cfg.nr.num_bs
+        mk = dict(nr=cfg.nr, channel=cfg.channel, ue_array=cfg.propagation.ue_array,
+                  carrier_frequency_hz=cfg.propagation.carrier_frequency_hz, keys=keys)
+        sec = cfg.security
+        self.chains = {"standard": PositioningChain(security=sec, receiver=cfg.receiver, **mk)}
+        if cfg.run.evaluate_encrypted:  # outcomes only: no uplink needed
+            enc = dataclasses.replace(sec, encrypted=(True,) * nbs)
+            rx = dataclasses.replace(cfg.receiver, uplink=False)
+            self.chains["encrypted"] = PositioningChain(security=enc, receiver=rx, **mk)
+        self.ds_chain = None
+        if cfg.run.digsig == "separate" and sec.tag_scheme != "ds":
+            ds = dataclasses.replace(sec, tag_scheme="ds")
+            rx = dataclasses.replace(cfg.receiver, uplink=False)
+            self.ds_chain = PositioningChain(security=ds, receiver=rx, **mk)
+        self.adversary = {m: AdversarySignal(cfg, c) for m, c in self.chains.items()}
+        if self.ds_chain is not None:
+            self.adversary["ds"] = AdversarySignal(cfg, self.ds_chain)
+        d = cfg.detectors
+        self.hmac, self.digsig = TagDetector(d.hmac), TagDetector(d.digsig)
+        self.absa, self.handshake = ABSADetector(d.absa), HandshakeDetector(d.handshake)
+        self.tracker = KalmanTracker(d.tracking)
+        self._benign: dict[tuple, ChainResult] = {}
+        self.timing = {"adversary": 0.0, "chain": 0.0, "detectors": 0.0}
+        self._last_valid: np.ndarray | None = None
+
+    # -- state -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Fresh detector state for a new scenario."""
+        self.tracker.reset()
+        self._last_valid = None
+
+    def _track(self, est_xy: np.ndarray, dt: float | None) -> bool:
+        z = est_xy if np.all(np.isfinite(est_xy)) else None
+        v = self.tracker(z, dt)
+        if v.accepted:
+            self._last_valid = v.position.copy()
+        return v.valid
+
+    def replay(self, rows: list[PointRow]) -> None:
+        """Rebuild the detector state from saved rows (resume)."""
+        self.reset()
+        prev = None
+        for r in rows:
+            self._track(r.est_xy, self._dt(prev, r.index))
+            prev = r.index
+
+    def _dt(self, prev: int | None, i: int) -> float | None:
+        if prev is None:
+            return None
+        t = self.geo.ue.t
+        return float(t[i] - t[prev]) if t[i] > t[prev] else None
+
+    # -- per point ---------------------------------------------------------------------------
+    def _chain(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int) -> ChainResult:
+        attack = scenario != "none" and bool(self.window[i])
+        ck = (key, i)
+        if not attack and ck in self._benign:
+            return self._benign[ck]
+        p = self.prop
+        sig = None
+        if attack:
+            t = time.perf_counter()
+            sig = self.adversary[key](scenario, i, i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
+                                      self.geo.ue.pos[i], stream(self.cfg.seed, "adversary",
+                                                                 _SCEN[scenario], mode, i))
+            self.timing["adversary"] += time.perf_counter() - t
+        t = time.perf_counter()
+        res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=i,
+                    adv_ue=p.adv_ue if attack else None, adversary_signal=sig)
+        self.timing["chain"] += time.perf_counter() - t
+        if not attack:
+            self._benign[ck] = res
+        return res
+
+    def point(self, scenario: str, i: int, prev: int | None) -> PointRow:
+        """Evaluate point ``i`` of ``scenario`` (``prev``: the previous evaluated point)."""
+        cfg = self.cfg
+        true_xy = self.geo.ue.pos[i, :2]
+        res = self._chain("standard", self.chains["standard"], scenario, 0, i)
+        est, err, out = self._fix(res, true_xy)
+        ds = self._chain("ds", self.ds_chain, scenario, 0, i) if self.ds_chain is not None else res
+        t = time.perf_counter()
+        v = {"HMAC": self.hmac(res.tags_valid, res.detected).valid,
+             "DigSig": self.digsig(ds.tags_valid, ds.detected).valid}
+        bs_pos = self.prop.bs_ue.tx_pos[i]
+        ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
+        ref_az = self.absa.reference_azimuth(bs_pos, ref)
+        # no AoA: NaN; no reference: unresolvable, and ABSA does not check that BS anyway
+        az = np.array([float(a.resolve(r)[0]) if (a is not None and np.isfinite(r)) else np.nan
+                       for a, r in zip(res.aoa, ref_az)])
+        v["ABSA"] = self.absa(az, bs_pos, reference_position=ref).valid
+        ul = res.uplink.position if res.uplink is not None else None
+        v["Handshake"] = self.handshake(res.position.position if res.position.ok else None,
+                                        ul.position if (ul is not None and ul.ok) else None).valid
+        v["Tracking"] = self._track(est, self._dt(prev, i))
+        self.timing["detectors"] += time.perf_counter() - t
+        row = PointRow(i, float(self.geo.ue.t[i]), scenario != "none" and bool(self.window[i]),
+                       v, true_xy.copy(), est, err, out)
+        if "encrypted" in self.chains:
+            r2 = self._chain("encrypted", self.chains["encrypted"], scenario, 1, i)
+            row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
+        return row
+
+    def _fix(self, res: ChainResult, true_xy: np.ndarray) -> tuple[np.ndarray, float, str]:
+        if not res.position.ok:
+            return np.full(2, np.nan), float("nan"), "service_failure"
+        est = np.asarray(res.position.position[:2], dtype=float).copy()
+        err = float(np.linalg.norm(est - true_xy))
+        return est, err, outcome_of(True, err, self.cfg.run.success_threshold_m)
+
+
+_SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
