@@ -122,9 +122,18 @@ def qpsk(bits: np.ndarray) -> np.ndarray:
 def prs_bits(n_id_seq: int, slot: int, symbol: int, length: int) -> np.ndarray:
     """The PRS bit stream b_PRS = c(0..2 length - 1) of one symbol (before QPSK).
 
-    :return: bits : [2 length] uint8
+    The sequence does not depend on the frame (c_init has no frame number), so it is cached.
+
+    :return: bits : [2 length] uint8, read-only
     """
-    return gold_sequence(prs_c_init(n_id_seq, slot, symbol), 2 * length)
+    return _prs_bits(int(n_id_seq), int(slot), int(symbol), int(length))
+
+
+@functools.lru_cache(maxsize=16384)
+def _prs_bits(n_id_seq: int, slot: int, symbol: int, length: int) -> np.ndarray:
+    out = gold_sequence(prs_c_init(n_id_seq, slot, symbol), 2 * length)
+    out.setflags(write=False)
+    return out
 
 
 def prs_sequence(n_id_seq: int, slot: int, symbol: int, length: int) -> np.ndarray:

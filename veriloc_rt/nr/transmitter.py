@@ -93,6 +93,7 @@ class PRSTransmitter:
                 raise ValueError(f"no keys for BS {missing}")
         self.keys = dict(keys) if keys is not None else {}
         self.ofdm = OFDM(nr)
+        self._standard: dict[tuple, np.ndarray] = {}
         self.modem = (TagModem(security.tag_scheme, self.layout.num_symbols * self.layout.res_per_symbol,
                                security.tag_fill, security.ldpc_iterations, security.ldpc_method)
                       if self.tags else None)
@@ -116,8 +117,16 @@ class PRSTransmitter:
         :return: grid : [num_slots, 14, num_subcarriers] complex128
         """
         enc = self.setups[bs].prs.encrypted if encrypted is None else encrypted
-        key = self.keys[self.setups[bs].bs_id].aes_key if enc else None
-        return prs_replica(self.layout, bs, self.setups[bs], frame, self._slots(slots), key)
+        slots = self._slots(slots)
+        if enc:
+            key = self.keys[self.setups[bs].bs_id].aes_key
+            return prs_replica(self.layout, bs, self.setups[bs], frame, slots, key)
+        # the standard PRS is the same in every frame: cached per (BS position, slots)
+        ck = (bs, tuple(slots))
+        if ck not in self._standard:
+            self._standard[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots)
+            self._standard[ck].setflags(write=False)
+        return self._standard[ck].copy()
 
     def tag_symbols(self, bs: int, frame: int, slot: int) -> np.ndarray:
         """QPSK tag symbols of BS ``bs`` for one slot, in tag-RE order (symbol, subcarrier).
