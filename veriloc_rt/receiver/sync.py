@@ -20,7 +20,7 @@ import scipy.fft as sfft
 
 from ..channel import subcarrier_frequencies, symbol_layout
 from ..nr.ofdm import OFDM
-from .toa import CrossSpectra
+from .toa import CrossSpectra, spatial_dof
 
 __all__ = ["frequency_cross_spectra", "time_cross_spectra", "noise_variance", "block_index"]
 
@@ -116,14 +116,12 @@ def noise_variance(rx_grid: np.ndarray, busy_symbols) -> float:
 
 
 def noise_dof(rx_grid: np.ndarray, busy_symbols) -> float:
-    """Effective chi-square degrees of freedom of sum_a |noise_a|^2 across the antennas.
+    """Effective degrees of freedom of the antenna-summed noise on the free symbols.
 
     White noise, independent per antenna, gives 2 A; noise from one direction (a jammer, a
     relay's amplified noise) is coherent across the array and gives 2: its sum over antennas
     has the tail of a single exponential, which a 2 A-dof threshold underestimates by several
-    dB. Satterthwaite's match of the first two moments of sum_i lambda_i chi2(2) / 2, with
-    lambda_i the eigenvalues of the spatial covariance on the free symbols:
-    dof = 2 (sum lambda)^2 / sum lambda^2.
+    dB. See :func:`~veriloc_rt.receiver.toa.spatial_dof`.
 
     :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
     :returns: float in [2, 2 num_ant] (2 num_ant when every symbol is busy)
@@ -132,8 +130,4 @@ def noise_dof(rx_grid: np.ndarray, busy_symbols) -> float:
     free = [l for l in range(rx_grid.shape[-2]) if l not in set(int(b) for b in busy_symbols)]
     if not free:
         return 2.0 * a
-    x = rx_grid[..., free, :].reshape(a, -1)
-    lam = np.clip(np.linalg.eigvalsh(x @ x.conj().T / x.shape[1]), 0.0, None)
-    if lam.sum() <= 0:
-        return 2.0 * a
-    return float(np.clip(2.0 * lam.sum() ** 2 / np.sum(lam ** 2), 2.0, 2.0 * a))
+    return spatial_dof(rx_grid[..., free, :].reshape(a, -1))

@@ -87,6 +87,23 @@ class ToAEstimate:
     noise_var: float
 
 
+def spatial_dof(x: np.ndarray) -> float:
+    """Effective chi-square degrees of freedom of sum_a |x_a|^2 for zero-mean samples x.
+
+    Satterthwaite's two-moment match of sum_i lambda_i chi2(2) / 2, lambda_i the eigenvalues of
+    the spatial covariance of ``x``: dof = 2 (sum lambda)^2 / sum lambda^2; 2 A for noise
+    independent per antenna, 2 for a field from one direction (a jammer, a relay, a spoofer).
+
+    :param x: [num_ant, num_samples] complex
+    :returns: float in [2, 2 num_ant] (2 num_ant without energy)
+    """
+    a = x.shape[0]
+    lam = np.clip(np.linalg.eigvalsh(x @ x.conj().T / max(x.shape[1], 1)), 0.0, None)
+    if lam.sum() <= 0:
+        return 2.0 * a
+    return float(np.clip(2.0 * lam.sum() ** 2 / np.sum(lam ** 2), 2.0, 2.0 * a))
+
+
 def _parabola(ym: float, y0: float, yp: float) -> float:
     """Vertex offset in [-1, 1] of the parabola through (-1, ym), (0, y0), (1, yp)."""
     den = ym - 2.0 * y0 + yp
@@ -210,8 +227,18 @@ class ToAEstimator:
                 prof = self._profiles(g, idx, lags, n_up)
                 m_rect = np.sum(np.abs(prof) ** 2, axis=0)
         # 3. detection against the exact noise floor
+        # the floor: the thermal one from ``noise_var`` (free symbols), or, when larger, a CFAR
+        # estimate from the median of the delay profile. Interference confined to the PRS REs
+        # (a spoofer's standard PRS against an encrypted replica, a relay) is absent from the
+        # free symbols but spreads over every lag of the profile like noise; its spatial
+        # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
+        dof = min(dof, spatial_dof(s.reshape(a_n, -1)))
         nv = max(float(noise_var), 0.0)
-        floor_rect = a_n * nv * float(np.sum(cs.ref_power))
+        sum_ref = float(np.sum(cs.ref_power))
+        floor_rect = a_n * nv * sum_ref
+        cfar = float(np.median(m_rect)) * dof / chi2.median(dof)
+        if cfar > floor_rect and sum_ref > 0:
+            floor_rect, nv = cfar, cfar / (a_n * sum_ref)
         peak = float(m_rect.max())
         tiny = 1e-30 + 1e-15 * peak
         snr_db = 10 * np.log10(peak / max(floor_rect, tiny)) if peak > 0 else -np.inf
