@@ -72,7 +72,10 @@ def cmd_run(args) -> int:
 
     cfg = _load(args.config, args.points, args.seed)
     out = Path(args.out)
-    res = run(cfg, out, progress=ProgressBar(), resume=args.resume)
+    if args.workers is not None and args.workers < 1:
+        raise InputError("--workers", f"got {args.workers}, expected an integer >= 1")
+    workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
+    res = run(cfg, out, progress=ProgressBar(), resume=args.resume, workers=workers)
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
@@ -173,6 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default="results", help="output folder (default: results)")
     r.add_argument("--points", type=int, help="number of trajectory points")
     r.add_argument("--seed", type=int, help="override the config's seed")
+    r.add_argument("--workers", type=int, help="processes for the per-point chains "
+                   "(default: 2, or 1 on a one-core machine); results do not depend on it")
     r.add_argument("--resume", action="store_true",
                    help="keep the points already in --out (same config) and continue after them")
     r.set_defaults(func=cmd_run)

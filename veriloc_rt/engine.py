@@ -125,14 +125,18 @@ def _write_run_json(out: Path, cfg: Config, timing: dict, geometry: Geometry, st
 
 
 def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
-        resume: bool = False) -> Results:
+        resume: bool = False, workers: int = 1) -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
 
     :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
     :param resume: keep the rows already in ``out_dir`` and continue after them
+    :param workers: processes computing the per-point chains (forked; the detectors, which
+        carry state from point to point, run in this process); same results for any number
     """
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"Argument `workers` must be an integer >= 1, not {workers!r}")
     from .report.results import ResultsWriter, read_rows, results_path, scenario_metrics
-    from .run_points import ScenarioRunner
+    from .run_points import ScenarioRunner, _work, worker_pool
 
     timing: dict = {}
     t0 = time.perf_counter()
@@ -155,6 +159,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
         _write_run_json(out, cfg, timing, geometry, "running")
 
     runner = ScenarioRunner(cfg, geometry, prop, keys)
+    pool = worker_pool(runner, workers) if workers > 1 else None
     n = geometry.num_points
     rows: dict = {}
     metrics: dict = {"scenarios": {}}
@@ -171,8 +176,18 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
             log.info("%s: resuming after %d of %d points", scenario, len(done), n)
         writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
         prev = done[-1].index if done else None
+        todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
+        ahead = (pool.imap(_work, [(scenario, i) for i in todo], chunksize=2)
+                 if pool is not None and todo else iter(()))
+        todo_set = set(todo) if pool is not None else set()
         try:
             for i in range(len(done), n):
+                if i in todo_set:
+                    j, results, dt = next(ahead)
+                    assert j == i
+                    runner.store_chains(results)
+                    for k, v in dt.items():
+                        runner.timing[k] += v
                 row = runner.point(scenario, i, prev)
                 prev = i
                 done.append(row)
@@ -180,13 +195,21 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
                     writer.write(row)
                 if progress:
                     progress(scenario, i + 1, n)
+        except BaseException:
+            if pool is not None:
+                pool.terminate()
+            raise
         finally:
             if writer:
                 writer.close()
         rows[scenario] = done
         metrics["scenarios"][scenario] = scenario_metrics(done, scenario)
         timing[f"scenario_{scenario}"] = time.perf_counter() - t_s
+    if pool is not None:
+        pool.close()
+        pool.join()
     timing.update({f"{k}_total": v for k, v in runner.timing.items()})
+    timing["workers"] = workers
     timing["total"] = time.perf_counter() - t0
     metrics["timing_s"] = timing
     metrics["propagation_model"] = cfg.propagation.model

@@ -114,6 +114,8 @@ class ScenarioRunner:
         self.hmac, self.digsig = TagDetector(d.hmac), TagDetector(d.digsig)
         self.absa, self.handshake = ABSADetector(d.absa), HandshakeDetector(d.handshake)
         self.tracker = KalmanTracker(d.tracking)
+        #: chain results by cache key: (key, i) benign, shared by the scenarios (common random
+        #: numbers); (key, scenario, i) attack points computed by a worker, used once
         self._benign: dict[tuple, ChainResult] = {}
         self.timing = {"adversary": 0.0, "chain": 0.0, "detectors": 0.0}
         self._last_valid: np.ndarray | None = None
@@ -146,11 +148,37 @@ class ScenarioRunner:
         return float(t[i] - t[prev]) if t[i] > t[prev] else None
 
     # -- per point ---------------------------------------------------------------------------
+    # -- chain results, local or from worker processes --------------------------------------
+    def _keys(self) -> list[tuple[str, PositioningChain, int]]:
+        out = [("standard", self.chains["standard"], 0)]
+        if self.ds_chain is not None:
+            out.append(("ds", self.ds_chain, 0))
+        if "encrypted" in self.chains:
+            out.append(("encrypted", self.chains["encrypted"], 1))
+        return out
+
+    def _ck(self, key: str, scenario: str, i: int) -> tuple:
+        attack = scenario != "none" and bool(self.window[i])
+        return (key, scenario, i) if attack else (key, i)
+
+    def needs_chains(self, scenario: str, i: int) -> bool:
+        """Whether point ``i`` of ``scenario`` still needs chain calls (not cached)."""
+        return any(self._ck(k, scenario, i) not in self._benign for k, _, _ in self._keys())
+
+    def compute_chains(self, scenario: str, i: int) -> dict:
+        """Every chain result point ``i`` of ``scenario`` needs, by cache key (for workers)."""
+        return {self._ck(k, scenario, i): self._chain(k, c, scenario, m, i) for k, c, m in self._keys()}
+
+    def store_chains(self, results: dict) -> None:
+        """Results from :meth:`compute_chains` (run elsewhere) for the next :meth:`point` calls."""
+        self._benign.update(results)
+
     def _chain(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int) -> ChainResult:
         attack = scenario != "none" and bool(self.window[i])
-        ck = (key, i)
-        if not attack and ck in self._benign:
-            return self._benign[ck]
+        ck = self._ck(key, scenario, i)
+        if ck in self._benign:
+            # benign results are shared by every scenario; attack results come from workers
+            return self._benign[ck] if not attack else self._benign.pop(ck)
         p = self.prop
         sig = None
         if attack:
@@ -205,3 +233,28 @@ class ScenarioRunner:
 
 
 _SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
+
+
+#: the runner a forked worker process uses (set by :func:`worker_pool` before forking)
+_WORKER: ScenarioRunner | None = None
+
+
+def _work(task: tuple[str, int]) -> tuple[int, dict, dict]:
+    scenario, i = task
+    before = dict(_WORKER.timing)
+    res = _WORKER.compute_chains(scenario, i)
+    _WORKER._benign.clear()  # the parent keeps the cache; a worker only computes
+    return i, res, {k: _WORKER.timing[k] - before[k] for k in before}
+
+
+def worker_pool(runner: ScenarioRunner, workers: int):
+    """A pool of ``workers`` forked processes computing :meth:`ScenarioRunner.compute_chains`.
+
+    Forked, so the workers inherit the runner (keys included) without pickling it; results
+    are identical to the serial run (every draw comes from a named stream per point).
+    """
+    import multiprocessing as mp
+
+    global _WORKER
+    _WORKER = runner
+    return mp.get_context("fork").Pool(workers)

@@ -118,3 +118,17 @@ def test_raytraced_tiny_canyon_four_scenarios(tmp_path, monkeypatch):
     cfg = config_from_dict(data)
     res = run(cfg, tmp_path / "r")
     check_run(res, tmp_path / "r")
+
+
+def test_two_workers_give_the_serial_result(tmp_path):
+    """Chains in forked workers, detectors in the parent: the same bytes as the serial run."""
+    cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                            "trajectory": {"num_points": 8}, "seed": 4,
+                            "run": {"scenarios": ["none", "meaconing"]}})
+    serial = run(cfg, tmp_path / "s", workers=1)
+    parallel = run(cfg, tmp_path / "p", workers=2)
+    for s in cfg.run.scenarios:
+        assert (tmp_path / "s" / f"{s}_results.csv").read_bytes() == (tmp_path / "p" / f"{s}_results.csv").read_bytes()
+    assert parallel.metrics["scenarios"] == serial.metrics["scenarios"]
+    with pytest.raises(ValueError, match="workers"):
+        run(cfg, tmp_path / "x", workers=0)
