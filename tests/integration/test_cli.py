@@ -72,3 +72,13 @@ def test_keys_generate_refuse_overwrite_and_bad_key_file(tmp_path):
     assert r.returncode == 2
     line = r.stderr.strip().splitlines()
     assert len(line) == 1 and line[0].startswith("error: ") and "bs" in line[0]
+
+
+@pytest.mark.raytrace
+def test_scene_command_on_an_external_scene_creates_the_out_folder(tmp_path):
+    # regression: an external scene writes no files of its own, and the PNG went to a folder
+    # nobody had created (exit 1, FileNotFoundError)
+    out = tmp_path / "new" / "folder"
+    r = cli("scene", ROOT / "configs" / "external-mini.json", "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert (out / "scene_top_view.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -70,6 +70,7 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
     ax.legend(loc="best", fontsize=8, framealpha=0.9)
     fig.tight_layout()
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
     return path

@@ -58,6 +58,9 @@ def test_c_init_formula_over_grid():
     (1023, 0, 0, "+- ++ +- +-"), (1024, 0, 0, "++ +- ++ +-"), (4095, 9, 13, "++ -- ++ -+"),
 ])
 def test_prs_sequence_fixed_vectors(n_id, n_s, l, signs):
+    # origin: the first 8 bits of the bit-serial reference above (``gold_reference``, 5.2.1 as
+    # written) at prs_c_init(n_id, n_s, l), mapped by 5.1.3 QPSK (bit 0 -> +, 1 -> -); stored
+    # so that a change in the vectorised Gold generator or the QPSK map shows up as a diff
     r = prs_sequence(n_id, n_s, l, 4)
     got = " ".join(("+" if z.real > 0 else "-") + ("+" if z.imag > 0 else "-") for z in r)
     assert got == signs

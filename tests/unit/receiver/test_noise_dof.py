@@ -38,6 +38,12 @@ def _grid(nr, rng, coherent: bool):
     return steer[:, None, None, None] * n
 
 
+def _receiver():
+    nr = NRConfig(slots_per_frame=2)
+    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), (1, 2, 3))
+    return nr, range(2), tx, tx.replica(0, 0, range(2)), ToAEstimator(ReceiverConfig(), 0.25e-6)
+
+
 def test_noise_dof_white_and_rank_one():
     nr = NRConfig(slots_per_frame=2)
     rng = np.random.default_rng(5)
@@ -47,11 +53,7 @@ def test_noise_dof_white_and_rank_one():
 
 
 def test_coherent_noise_is_not_heard_as_a_bs():
-    nr = NRConfig(slots_per_frame=2)
-    slots = range(2)
-    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), (1, 2, 3))
-    rep = tx.replica(0, 0, slots)
-    est = ToAEstimator(ReceiverConfig(), 0.25e-6)
+    nr, slots, tx, rep, est = _receiver()
     rng = np.random.default_rng(17)
     old = aware = 0
     for _ in range(DRAWS):
@@ -72,11 +74,7 @@ def test_interference_on_prs_res_only_is_not_heard():
     The free-symbol noise estimate sees only the thermal floor, 30 dB below the interference;
     the CFAR floor from the profile median must take over.
     """
-    nr = NRConfig(slots_per_frame=2)
-    slots = range(2)
-    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), (1, 2, 3))
-    rep = tx.replica(0, 0, slots)
-    est = ToAEstimator(ReceiverConfig(), 0.25e-6)
+    nr, slots, tx, rep, est = _receiver()
     rng = np.random.default_rng(23)
     busy = np.zeros(14, bool)
     busy[list(nr.prs_symbols)] = True
