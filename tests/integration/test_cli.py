@@ -20,6 +20,8 @@ def cli(*args, cwd=None):
     ({"trajectory": {"bogus": 1}}, "trajectory.bogus"),
     ({"scene": {"source": "missing.xml"}}, "scene.source"),
     ({"trajectory": {"source": "missing.csv"}}, "trajectory.source"),
+    ({"topology": {"isd_m": 5}}, "topology.isd_m"),
+    ({"topology": {"bs_height_m": "high"}}, "topology.bs_height_m"),
 ])
 def test_bad_input_is_one_line_exit_2(tmp_path, config, field):
     f = tmp_path / "c.json"
