@@ -253,6 +253,13 @@ class Config:
         if len(self.security.encrypted) != self.nr.num_bs:
             raise bad_value("security.encrypted", list(self.security.encrypted),
                             f"{self.nr.num_bs} flags, one per serving BS of nr.comb_offsets")
+        slots = self.threats.fbs.spoofed_slots
+        for i, k in enumerate(slots):
+            if not 0 <= k < self.nr.num_bs:
+                raise bad_value(f"threats.fbs.spoofed_slots[{i}]", k,
+                                f"a serving-BS slot 0..{self.nr.num_bs - 1}")
+        if len(set(slots)) != len(slots):
+            raise bad_value("threats.fbs.spoofed_slots", list(slots), "no repeated slot")
 
     def replace(self, **changes: Any) -> "Config":
         """Copy with top-level fields changed (``seed=...``)."""

@@ -54,7 +54,7 @@ class AdversarySignal:
         self.slots = chain.slots
         self.freqs = subcarrier_frequencies(self.ofdm)
         self.unit = float(re_amplitude(dbm_to_watt(cfg.channel.adversary_power_dbm), self.ofdm))
-        self.fbs = FalseBaseStation(cfg.threats.fbs)
+        self.fbs = FalseBaseStation(cfg.threats.fbs, cfg.threats.fbs.spoofed_slots or None)
         self.meaconer = Meaconer(cfg.threats.meaconing)
         self.jammer = Jammer(cfg.nr, cfg.threats.jamming)
         fs = self.ofdm.sample_rate_hz

@@ -27,6 +27,10 @@ def test_empty_config_is_the_default():
      "max_speed_mps"),
     ({"scene": {"building_height_m": float("inf")}}, "scene.building_height_m", "finite"),
     ({"scene": []}, "scene", "an object"),
+    ({"threats": {"fbs": {"spoofed_slots": [3]}}}, "threats.fbs.spoofed_slots[0]", "0..2"),
+    ({"threats": {"fbs": {"spoofed_slots": [1, 1]}}}, "threats.fbs.spoofed_slots", "repeated"),
+    ({"run": {"scenarios": ["none", "spoof"]}}, "run.scenarios[1]", "'fbs'"),
+    ({"run": {"attack_start_fraction": 0.8}}, "run.attack_end_fraction", "attack_start_fraction"),
 ])
 def test_bad_values_name_the_field(data, field, words):
     with pytest.raises(InputError) as exc:

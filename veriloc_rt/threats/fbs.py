@@ -60,6 +60,11 @@ class FBSConfig:
     tag_fill: str = param("random_qpsk", "what the spoofer puts in the tag REs: 'random_qpsk' "
                           "(forged tag attempt) or 'none' (empty)",
                           choices=("random_qpsk", "none"))
+    spoofed_slots: tuple[int, ...] = param((), "serving-BS slots (0 = the RSTD reference) whose "
+                                           "PRS the spoofer replicates; empty: all. A subset "
+                                           "biases only those BSs' timing, the others keep the "
+                                           "true geometry, so the fix lands off the target or "
+                                           "not at all (the paper's 'selective' spoofing)")
 
 
 def target_position(ue_estimate, offset_m: float, bearing_rad: float) -> np.ndarray:
