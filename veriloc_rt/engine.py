@@ -222,11 +222,13 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
 
 def _write_plots(out: Path, cfg: Config, geometry: Geometry, metrics: dict) -> None:
     from .report import plots
+    from .report.paper import PAPER_RATES
     from .report.scene_plot import plot_top_view
 
     plot_top_view(geometry, out / "scene_top_view.png")
     plots.plot_outcomes(metrics, out / "outcomes.png")
-    plots.plot_detection_rates(metrics, out / "detection_rates.png")
+    plots.plot_detection_rates(metrics, out / "detection_rates.png", reference=PAPER_RATES,
+                               title="correct decisions (dashed: the paper, on UMa)")
     window = cfg.run.attack_points(geometry.num_points)
     idx = np.flatnonzero(window)
     span = (int(idx[0]) + 1, int(idx[-1]) + 1) if idx.size else None
