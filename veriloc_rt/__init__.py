@@ -18,6 +18,8 @@ _EXPORTS = {
     "CIR": "veriloc_rt.propagation.cir",
     "urban_canyon": "veriloc_rt.scene.canyon",
     "trace": "veriloc_rt.propagation.raytrace",
+    "run": "veriloc_rt.engine",
+    "Results": "veriloc_rt.engine",
     "gold_sequence": "veriloc_rt.nr.prs",
     "prs_c_init": "veriloc_rt.nr.prs",
     "prs_sequence": "veriloc_rt.nr.prs",

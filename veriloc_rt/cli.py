@@ -29,22 +29,27 @@ class ProgressBar:
     def __init__(self, stream=sys.stderr, width: int = 30):
         self.stream, self.width = stream, width
         self.label, self.start, self.last = None, 0.0, 0.0
+        # not a terminal (CI logs, files): a line every 10 s instead of redraws
+        self.interval = 0.2 if getattr(stream, "isatty", lambda: False)() else 10.0
 
     def __call__(self, label: str, done: int, total: int) -> None:
         now = time.monotonic()
         if label != self.label:
-            if self.label is not None:
+            if self.label is not None and self.interval < 1.0:  # close the redrawn line
                 self.stream.write("\n")
             self.label, self.start, self.last = label, now, 0.0
-        if now - self.last < 0.2 and done < total:
+        if now - self.last < self.interval and done < total:
             return
         self.last = now
         frac = done / total if total else 1.0
         elapsed = now - self.start
         eta = elapsed / frac - elapsed if frac > 0 else float("nan")
         bar = "#" * int(frac * self.width)
-        self.stream.write(f"\r{label:<12} [{bar:<{self.width}}] {done}/{total} "
+        lead = "\r" if self.interval < 1.0 else ""
+        self.stream.write(f"{lead}{label:<12} [{bar:<{self.width}}] {done}/{total} "
                           f"{elapsed:5.0f}s elapsed, ETA {eta:5.0f}s")
+        if lead == "" and done < total:
+            self.stream.write("\n")
         if done >= total:
             self.stream.write("\n")
             self.label = None

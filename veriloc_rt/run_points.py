@@ -257,4 +257,11 @@ def worker_pool(runner: ScenarioRunner, workers: int):
 
     global _WORKER
     _WORKER = runner
-    return mp.get_context("fork").Pool(workers)
+    return mp.get_context("fork").Pool(workers, initializer=_ignore_sigint)
+
+
+def _ignore_sigint() -> None:
+    """Workers leave Ctrl-C to the parent, which terminates them and keeps the finished rows."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
