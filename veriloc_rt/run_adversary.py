@@ -16,8 +16,9 @@ reference lies within the cyclic prefix, as :func:`veriloc_rt.channel.apply_freq
   equally over its replicas. The adversary's estimate of the UE is the true UE position (ideal
   tracking, the strongest adversary; documented choice).
 * **meaconing**: the grid the adversary receives from the serving BSs over the ``bs_adv`` links
-  (the BSs transmit with the powers the UE's power control set), plus the adversary's thermal
-  noise (the UE's noise figure), with absolute timing (t0 = 0); then the relay's AGC to
+  (the BSs transmit with the powers the UE's power control set) through its receive antenna
+  gain (``meaconing.rx_antenna_gain_dbi``), plus its thermal noise (``meaconing.noise_figure_db``,
+  default the UE's), with absolute timing (t0 = 0); then the relay's AGC to
   ``meaconing.power_dbm`` (capped by ``max_gain_db``) and its processing delay as a phase ramp.
   This is :func:`veriloc_rt.threats.meaconing.meacon` done on the grid instead of on IQ.
 * **jamming**: :meth:`Jammer.grid`, complex Gaussian noise on every RE of the PRS band.
@@ -58,8 +59,10 @@ class AdversarySignal:
         self.meaconer = Meaconer(cfg.threats.meaconing)
         self.jammer = Jammer(cfg.nr, cfg.threats.jamming)
         fs = self.ofdm.sample_rate_hz
-        self.adv_noise_var = (thermal_noise_variance(fs, cfg.channel.ue_noise_figure_db)
-                              if cfg.channel.noise else 0.0)
+        mc = cfg.threats.meaconing
+        nf = cfg.channel.ue_noise_figure_db if mc.noise_figure_db is None else mc.noise_figure_db
+        self.adv_noise_var = thermal_noise_variance(fs, nf) if cfg.channel.noise else 0.0
+        self.relay_rx_gain = 10.0 ** (mc.rx_antenna_gain_dbi / 20.0)
         self.shape = (len(self.slots), 14, self.ofdm.num_subcarriers)
 
     def _delay(self, delay_s: float) -> np.ndarray:
@@ -102,8 +105,9 @@ class AdversarySignal:
         ch = self.cfg.channel
         powers = equal_arrival_powers(Links.from_cir(bs_ue, point).power_gain(),
                                       float(dbm_to_watt(ch.bs_max_power_dbm)), ch.power_control)
-        y = apply_frequency(Links.from_cir(bs_adv, point), grids, re_amplitude(powers, self.ofdm),
-                            self.ofdm, self.slots, 0.0)[0]
+        y = self.relay_rx_gain * apply_frequency(Links.from_cir(bs_adv, point), grids,
+                                                 re_amplitude(powers, self.ofdm), self.ofdm,
+                                                 self.slots, 0.0)[0]
         y = add_noise(y, self.adv_noise_var, rng)
         # AGC over the whole input (signal + noise): RE power p means carrier power
         # p N_sc / N_fft (channel module's convention), so the gain is the same as on IQ

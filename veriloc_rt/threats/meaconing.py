@@ -36,6 +36,11 @@ class MeaconingConfig:
                                       lo=0.0, hi=1e-2)
     max_gain_db: float | None = param(None, "largest amplifier gain; null: unlimited",
                                       lo=0.0, hi=300.0)
+    noise_figure_db: float | None = param(None, "noise figure of the relay's receiver; null: "
+                                          "the UE's (channel.ue_noise_figure_db)", lo=0.0, hi=30.0)
+    rx_antenna_gain_dbi: float = param(0.0, "gain of the relay's receive antenna towards the "
+                                       "BSs (a directional or array antenna hears them above "
+                                       "its own noise)", lo=-20.0, hi=40.0)
 
 
 def fractional_delay(x, delay_s: float, sample_rate_hz: float) -> np.ndarray:
