@@ -52,7 +52,6 @@ __all__ = ["PointRow", "ScenarioRunner", "DETECTORS", "OUTCOMES", "outcome_of"]
 
 DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
 OUTCOMES = ("success", "large_error", "service_failure")
-_MODES = ("standard", "encrypted")
 
 
 @dataclass

@@ -17,15 +17,14 @@ import numpy as np
 
 from veriloc_rt.errors import InputError, bad_value
 
+from ..run_points import DETECTORS, OUTCOMES
+from .results import CSV_COLUMNS
+
 log = logging.getLogger(__name__)
 
-DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
-COLUMNS = ("Time",) + DETECTORS + ("x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
-                                   "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc",
-                                   "outcome_enc")
+COLUMNS = CSV_COLUMNS
 STR_COLUMNS = ("outcome", "outcome_enc")
 INT_COLUMNS = ("index",)
-OUTCOMES = ("success", "large_error", "service_failure")
 
 _SCENARIO_LABELS = {"none": "No Attack", "fbs": "FBS", "meaconing": "Meaconing",
                     "jamming": "Jamming"}
