@@ -231,7 +231,7 @@ def _write_plots(out: Path, cfg: Config, geometry: Geometry, metrics: dict) -> N
                                title="correct decisions (dashed: the paper, on UMa)")
     window = cfg.run.attack_points(geometry.num_points)
     idx = np.flatnonzero(window)
-    span = (int(idx[0]) + 1, int(idx[-1]) + 1) if idx.size else None
+    span = (int(idx[0]), int(idx[-1]) + 1) if idx.size else None  # 0-based, stop excluded
     for scenario in cfg.run.scenarios:
         data = plots.read_results_csv(out / f"{scenario}_results.csv")
         plots.plot_time_series(data, out / f"{scenario}_timeseries.png",
