@@ -171,13 +171,19 @@ class PositioningChain:
                     iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples,
                                     self.decimation)
                     y = y + self.ofdm.demodulate(iq, self.slots)
-            return add_noise(y, self.noise_var, rng), None
+            return self._add_noise(y, rng), None
         iq = apply_time(links, sig["waveform"], amps, fs, t0, self.buffer_samples, self.decimation)
         if adv is not None:
             wave = self.ofdm.modulate(adv_signal, self.slots) if adv_signal.ndim == 3 else adv_signal
             iq = iq + apply_time(adv, wave[None], adv_amp, fs, t0, self.buffer_samples, self.decimation)
-        iq = add_noise(iq, self.noise_var, rng)
+        iq = self._add_noise(iq, rng)
         return self.ofdm.demodulate(iq, self.slots), iq
+
+    def _add_noise(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The received signal plus thermal noise: a grid [A, S, 14, K] in the frequency domain,
+        IQ [A, N] in the time domain (the one place noise enters the downlink; a benchmark can
+        override it to feed two fidelities the same noise realisation)."""
+        return add_noise(x, self.noise_var, rng)
 
     def _tags(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
               replica: np.ndarray | None) -> bool:

@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft as sfft
 from scipy.stats import chi2
 
 from ..channel_config import ReceiverConfig
@@ -149,10 +150,27 @@ class ToAEstimator:
 
     @staticmethod
     def _profiles(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int) -> np.ndarray:
-        """Complex profile on the lag grid: [..., num_bins] -> [..., num_lags]."""
-        buf = np.zeros(g.shape[:-1] + (n_up,), dtype=np.complex128)
+        """Complex profile on the lag grid: [..., num_bins] -> [..., num_lags] (g's precision)."""
+        dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
+        buf = np.zeros(g.shape[:-1] + (n_up,), dtype=dtype)
         buf[..., idx % n_up] = g
-        return np.fft.ifft(buf, axis=-1)[..., lags % n_up] * n_up
+        out = sfft.ifft(buf, axis=-1, overwrite_x=True)[..., lags % n_up]
+        out *= n_up
+        return out
+
+    def _power_map(self, s: np.ndarray, nus: np.ndarray, tc: np.ndarray, idx: np.ndarray,
+                   lags: np.ndarray, n_up: int) -> np.ndarray:
+        """Delay-Doppler power map sum_a |sum_b e^{-j2pi nu t_b} c_ab(tau)|^2: [V, num_lags].
+
+        Single precision: the map only ranks hypotheses and cells against thresholds (relative
+        error ~1e-7, far below the noise); the ToA itself is refined on exact double-precision
+        evaluations. Measured 2x faster than double on the chain (scripts/bench_chain.py).
+        """
+        a_, b_, k_ = s.shape
+        rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)   # [V, B]
+        g = (rot @ s.astype(np.complex64).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
+        p = self._profiles(g, idx, lags, n_up)
+        return np.sum(p.real ** 2 + p.imag ** 2, axis=1, dtype=np.float64)
 
     @staticmethod
     def _eval(g: np.ndarray, freqs: np.ndarray, tau: float) -> np.ndarray:
@@ -194,11 +212,8 @@ class ToAEstimator:
         #    straddle loss is common to every Doppler hypothesis)
         if cfg.doppler_max_hz > 0:
             nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
-            rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])             # [V, B]
-            a_, b_, k_ = s.shape
-            g_nu = (rot @ s.transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
             idx1, lags1, n1 = self._grid(cs, 1)
-            metric = np.sum(np.abs(self._profiles(g_nu, idx1, lags1, n1)) ** 2, axis=1).max(axis=-1)
+            metric = self._power_map(s, nus, tc, idx1, lags1, n1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
@@ -260,9 +275,7 @@ class ToAEstimator:
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
                 idx1, lags1, n1 = idx, lags, n_up
-                rot_v = np.exp(-2j * np.pi * nus[:, None] * tc[None, :])
-                gw_v = (rot_v @ (s * win).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
-                dmap = np.sum(np.abs(self._profiles(gw_v, idx1, lags1, n1)) ** 2, axis=1)  # [V, L1]
+                dmap = self._power_map(s * win, nus, tc, idx1, lags1, n1)               # [V, L1]
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
