@@ -37,7 +37,7 @@ _OUTCOME_COLOURS = {"success": (0.0, 0.6, 0.0), "large_error": (1.0, 0.3, 0.3),
 
 
 @contextmanager
-def _figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), **kw):
+def _figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), ncols: int = 1, **kw):
     """Yield ``(fig, axes)`` on the Agg backend; on a clean exit add ``title``, save, log.
 
     The figure is closed in every case. ``kw`` goes to ``plt.subplots``.
@@ -46,7 +46,7 @@ def _figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(nrows, 1, figsize=figsize, dpi=110, layout="constrained", **kw)
+    fig, axes = plt.subplots(nrows, ncols, figsize=figsize, dpi=110, layout="constrained", **kw)
     try:
         yield fig, axes
         if title:
@@ -319,3 +319,118 @@ def read_results_csv(path: str | Path) -> dict[str, np.ndarray]:
             a = np.array(vals, dtype=float)
             out[h] = a.astype(np.int64) if h in INT_COLUMNS and np.isfinite(a).all() else a
     return out
+
+
+def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) -> None:
+    """Time against accuracy of a fidelity sweep (``veriloc-rt bench``), one panel per group.
+
+    :param rows: bench rows (``veriloc_rt.bench``): group, label, role, time_s, time_unit,
+        pareto, position_dev_m_p95. x: seconds per link or point (log); y: p95 DL position
+        deviation from the reference (log, with the reference, 0 by definition, drawn at the
+        axis floor); the Pareto front joined by a line, the config's setting starred, the
+        noise floor dashed.
+    """
+    groups = [g for g in ("raytrace", "waveform") if any(r["group"] == g for r in rows)]
+    if not groups:
+        raise ValueError("Argument `rows` holds no bench settings")
+    with _figure(path, title, ncols=len(groups), figsize=(6.5 * len(groups), 5.0),
+                 squeeze=False) as (fig, axes):
+        for ax, g in zip(axes[0], groups):
+            grp = [r for r in rows if r["group"] == g]
+            dev = np.array([np.nan if r.get("position_dev_m_p95") is None else r["position_dev_m_p95"]
+                            for r in grp], dtype=float)
+            t = np.array([r["time_s"] for r in grp], dtype=float)
+            pos = dev[np.isfinite(dev) & (dev > 0)]
+            floor = max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
+            y = np.where(np.isfinite(dev), np.maximum(dev, floor), np.nan)
+            placed: list[tuple[float, float]] = []
+            for r, xi, yi in zip(grp, t, y):
+                if r["role"] == "noise floor" or not np.isfinite(yi):
+                    continue
+                # stack the labels of nearby points (log axes) instead of overprinting them
+                near = sum(abs(np.log10(xi) - px) < 0.35 and abs(np.log10(yi) - py) < 0.08
+                           for px, py in placed)
+                placed.append((float(np.log10(xi)), float(np.log10(yi))))
+                star = r["role"] == "config"
+                ax.scatter([xi], [yi], s=140 if star else 36, marker="*" if star else "o",
+                           color="tab:red" if star else ("tab:blue" if r["pareto"] else "0.6"),
+                           zorder=3)
+                ax.annotate(r["label"], (xi, yi), fontsize=7, xytext=(4, 3 + 9 * near),
+                            textcoords="offset points")
+            front = [(xi, yi) for r, xi, yi in zip(grp, t, y) if r["pareto"] and np.isfinite(yi)]
+            if front:
+                fx, fy = zip(*sorted(front))
+                ax.step(fx, fy, where="post", color="tab:blue", lw=1.2, label="Pareto front")
+            nf = [yi for r, yi in zip(grp, y) if r["role"] == "noise floor" and np.isfinite(yi)]
+            if nf:
+                ax.axhline(nf[0], color="0.3", ls="--", lw=1, label="noise floor (other noise draws)")
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            unit = grp[0]["time_unit"]
+            ax.set_xlabel(f"seconds per {unit}")
+            ax.set_ylabel("p95 DL position deviation from the reference, m")
+            ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(loc="upper right", fontsize=8)
+
+
+def _cdf(ax, x, label: str, **kw) -> None:
+    x = np.sort(np.asarray(x, dtype=float).ravel())
+    x = x[np.isfinite(x)]
+    if x.size:
+        ax.plot(x, np.arange(1, x.size + 1) / x.size, label=f"{label} (n={x.size})", **kw)
+
+
+def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = None) -> None:
+    """CDFs of the benign chain's errors per propagation model (``veriloc-rt compare``).
+
+    :param benign: {model: :class:`veriloc_rt.diagnostics.BenignRun`}
+    """
+    panels = (("position_error_m", "DL position error, m"),
+              ("toa_bias_m", "ToA bias against the straight-line delay, m"),
+              ("rstd_error_m", "RSTD error (BS j - BS 0), m"),
+              ("aoa_error_deg", "AoA error against the BS direction, deg"))
+    colours = {"raytrace": "tab:blue", "uma": "tab:orange"}
+    names = {"raytrace": "ray tracing", "uma": "TR 38.901 UMa"}
+    with _figure(path, title or "benign errors: ray tracing vs UMa", nrows=2, ncols=2,
+                 figsize=(11.0, 8.0)) as (fig, axes):
+        for ax, (attr, label) in zip(axes.ravel(), panels):
+            for model, b in benign.items():
+                _cdf(ax, getattr(b, attr), names.get(model, model), color=colours.get(model))
+            ax.set_xlabel(label)
+            ax.set_ylabel("CDF")
+            ax.grid(True, alpha=0.3)
+            ax.set_ylim(0, 1.02)
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="lower right", fontsize=8)
+            if attr in ("position_error_m", "aoa_error_deg"):
+                ax.set_xscale("symlog", linthresh=1.0)
+
+
+def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | None = None) -> None:
+    """Correct-decision rate per detector and scenario, one bar per propagation model.
+
+    :param detectors: {model: metrics.json "scenarios"}
+    """
+    models = list(detectors)
+    scen = [s for s in _SCENARIO_LABELS if any((detectors[m].get(s) or {}).get("num_points")
+                                               for m in models)]
+    if not scen:
+        raise ValueError("Argument `detectors` holds no evaluated scenario")
+    hatches = {"raytrace": "", "uma": "//"}
+    with _figure(path, title or "correct decisions: ray tracing (plain) vs UMa (hatched)",
+                 ncols=len(scen), figsize=(3.2 * len(scen) + 1.0, 4.2), squeeze=False) as (fig, axes):
+        for ax, s in zip(axes[0], scen):
+            x = np.arange(len(DETECTORS))
+            w = 0.8 / len(models)
+            for k, m in enumerate(models):
+                rates = (detectors[m].get(s) or {}).get("correct_decision_rate") or {}
+                v = [_value(rates, d) for d in DETECTORS]
+                ax.bar(x + (k - (len(models) - 1) / 2) * w, v, w,
+                       color=[_DETECTOR_STYLE[d][1] for d in DETECTORS], hatch=hatches.get(m, "xx"),
+                       edgecolor="white", label=m)
+            ax.set_xticks(x, [_DETECTOR_STYLE[d][0] for d in DETECTORS], fontsize=8)
+            ax.set_ylim(0, 105)
+            ax.set_title(_SCENARIO_LABELS[s])
+            ax.grid(True, axis="y", alpha=0.3)
+        axes[0][0].set_ylabel("correct decisions, %")

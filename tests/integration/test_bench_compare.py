@@ -1,0 +1,89 @@
+"""``veriloc-rt bench --quick`` and ``veriloc-rt compare`` on the CI-sized default config.
+
+Both trace a tiny canyon (configs/ci-tiny.json) with Sionna RT; the checks are on the files
+and on properties that must hold whatever the traced numbers are: the reference deviates from
+itself by exactly 0, every time is positive, each group has a non-empty Pareto front containing
+the reference, both models of the comparison ran every scenario on the same trajectory.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from veriloc_rt.cli import main
+
+CONFIG = str(Path(__file__).resolve().parents[2] / "configs" / "ci-tiny.json")
+
+pytestmark = pytest.mark.raytrace
+
+
+@pytest.fixture(scope="module")
+def bench_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    assert main(["bench", CONFIG, "--quick", "--points", "3", "--out", str(out)]) == 0
+    return out
+
+
+def _rows(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def test_bench_files_and_numbers(bench_out):
+    for name in ("bench.csv", "bench.json", "bench.md", "bench_pareto.png"):
+        assert (bench_out / name).stat().st_size > 0, name
+    rows = _rows(bench_out / "bench.csv")
+    assert {r["group"] for r in rows} == {"raytrace", "waveform"}
+    for r in rows:
+        assert math.isfinite(float(r["time_s"])) and float(r["time_s"]) > 0, r["label"]
+        if r["role"] != "noise floor":
+            assert r["position_dev_m_p95"] != "" and math.isfinite(float(r["position_dev_m_p95"]))
+        assert 0.0 <= float(r["decision_agreement_pct"]) <= 100.0
+    for g in ("raytrace", "waveform"):
+        grp = [r for r in rows if r["group"] == g]
+        ref = next(r for r in grp if r["role"] == "reference")
+        # the reference against itself: no deviation at all (same CIRs, same noise draws)
+        assert float(ref["position_dev_m_p95"]) == 0.0
+        assert float(ref["decision_agreement_pct"]) == 100.0
+        front = [r for r in grp if r["pareto"] == "True"]
+        assert front and ref in front
+    rt_ref = next(r for r in rows if r["group"] == "raytrace" and r["role"] == "reference")
+    assert float(rt_ref["first_path_dev_m_p95"]) == 0.0
+    meta = json.loads((bench_out / "bench.json").read_text())["meta"]
+    assert meta["num_points"] == 3 and meta["quick"] is True
+
+
+@pytest.fixture(scope="module")
+def compare_out(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare")
+    assert main(["compare", CONFIG, "--points", "8", "--workers", "1", "--out", str(out)]) == 0
+    return out
+
+
+def test_compare_files_and_numbers(compare_out):
+    for name in ("comparison.md", "comparison.json", "comparison_points.csv",
+                 "comparison_channel.csv", "comparison_cdf.png", "comparison_detectors.png",
+                 "raytrace/metrics.json", "uma/metrics.json"):
+        assert (compare_out / name).stat().st_size > 0, name
+    data = json.loads((compare_out / "comparison.json").read_text())
+    for model in ("raytrace", "uma"):
+        ch = data["channel"][model]
+        assert ch["links"] == 8 * 3
+        assert 0.0 <= ch["links_with_path_pct"] <= 100.0
+        assert set(data["detectors"][model]) == {"none", "fbs", "meaconing", "jamming"}
+        err = data["errors"][model]
+        assert err["position_error_m"]["n"] <= 8
+    # UMa draws every link with paths; the table values are the standard's
+    assert data["channel"]["uma"]["links_with_path_pct"] == 100.0
+    assert data["channel"]["uma_table"]["los"]["k_db"] == 9.0
+    pts = _rows(compare_out / "comparison_points.csv")
+    assert len(pts) == 2 * 8 * 3
+    # the same trajectory in both runs: identical true positions in the two CSVs
+    a = _rows(compare_out / "raytrace" / "none_results.csv")
+    b = _rows(compare_out / "uma" / "none_results.csv")
+    assert [(r["x_true"], r["y_true"]) for r in a] == [(r["x_true"], r["y_true"]) for r in b]

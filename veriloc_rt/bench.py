@@ -1,0 +1,423 @@
+"""Fidelity sweep (``veriloc-rt bench``): what each speed/accuracy setting costs and buys.
+
+Every setting that trades time for accuracy (DESIGN.md, "Fidelity") is swept one knob at a time
+from the config's own values, and each setting is compared with the *reference*, the highest
+level of every knob of its group at once:
+
+* ray tracing (group ``raytrace``): rays per source, maximum depth, diffraction, scene crop
+  margin. Cost: tracing seconds per serving link. Deviation from the reference: the channel's
+  first-path delay (m) and azimuth of arrival (deg) per link, the share of links whose path
+  presence differs, and, through the config's chain on the same noise, the DL position and the
+  detector decisions;
+* waveform and receiver (group ``waveform``, on the CIRs of the config's own propagation
+  setting): sample rate, slots per frame, time vs frequency domain, Doppler scan (on/off, step)
+  and the delay-profile zero padding. Cost: chain seconds per point. Deviation: estimated
+  first-path delay and AoA per BS, DL position, decisions.
+
+Decisions per point (benign): fix obtained, HMAC tags of every BS valid, ABSA (AoA against the
+true geometry) and DL-UL handshake; the agreement is the share of (point, decision) pairs equal
+to the reference's. Every chain run uses the run's noise streams (``stream(seed, "noise", 0,
+i)``, as ``veriloc-rt run``), so two settings see the same noise draws; a *noise floor* row (the
+config's setting with other noise draws) shows how much deviation noise alone produces: only
+deviations above it are the setting's.
+
+The Pareto front (time against p95 position deviation) is marked per group; the chart, a CSV,
+JSON and a markdown table are written by :func:`write_bench`.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .config import Config, config_from_dict, config_to_dict
+from .constants import SPEED_OF_LIGHT
+from .diagnostics import BenignRun, benign_chain, wrap_deg
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Knob", "Setting", "BenchResult", "sweep_settings", "run_bench", "pareto_front",
+           "write_bench"]
+
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True)
+class Knob:
+    """One fidelity knob: a config field and the levels swept (the last is the highest)."""
+
+    group: str
+    name: str
+    path: str
+    levels: tuple
+
+
+#: the sweep (full); ``quick`` keeps the levels marked in QUICK_LEVELS
+KNOBS = (
+    Knob("raytrace", "rays_per_source", "propagation.raytrace.rays_per_source",
+         (10_000, 20_000, 50_000, 100_000, 300_000)),
+    Knob("raytrace", "max_depth", "propagation.raytrace.max_depth", (1, 2, 3, 4)),
+    Knob("raytrace", "diffraction", "propagation.raytrace.diffraction", (False, True)),
+    Knob("raytrace", "margin_m", "scene.margin_m", (20.0, 60.0, 150.0)),
+    Knob("waveform", "sample_rate_hz", "nr.sample_rate_hz", (None, 30.72e6, 61.44e6, 122.88e6)),
+    Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
+    Knob("waveform", "domain", "channel.domain", ("frequency", "time")),
+    Knob("waveform", "doppler_max_hz", "receiver.doppler_max_hz", (0.0, 400.0)),
+    Knob("waveform", "doppler_step_hz", "receiver.doppler_step_hz", (100.0, 50.0, 25.0, 12.5)),
+    Knob("waveform", "upsample", "receiver.upsample", (1, 2, 4, 8)),
+)
+#: time-domain settings apply the paths at sample_rate / TIME_DECIMATION (clipped by the chain to
+#: the smallest FFT that holds the band)
+TIME_DECIMATION = 8
+QUICK_LEVELS = {
+    "rays_per_source": (10_000, 50_000, 200_000),
+    "max_depth": (2, 3),
+    "margin_m": (30.0, 60.0, 120.0),
+    "sample_rate_hz": (None, 61.44e6, 122.88e6),
+    "slots_per_frame": (5, 10),
+    "doppler_step_hz": (50.0, 25.0, 12.5),
+    "upsample": (2, 4, 8),
+}
+
+
+@dataclass
+class Setting:
+    """One swept setting and what it measured.
+
+    time_s : cost per unit (``time_unit``: 'link' for ray tracing, 'point' for the chain)
+    metrics : deviation statistics from the reference (None entries: not applicable)
+    """
+
+    group: str
+    knob: str
+    value: object
+    patch: dict
+    role: str = "sweep"            # 'config' | 'reference' | 'sweep' | 'noise floor'
+    time_s: float = float("nan")
+    time_unit: str = "point"
+    metrics: dict = field(default_factory=dict)
+    pareto: bool = False
+
+    @property
+    def label(self) -> str:
+        if self.role in ("config", "reference", "noise floor"):
+            return self.role
+        v = self.value
+        if isinstance(v, float) and v >= 1e6:
+            v = f"{v / 1e6:g} MHz"
+        elif v is None:
+            v = "min"
+        return f"{self.knob}={v}"
+
+
+@dataclass
+class BenchResult:
+    settings: list
+    meta: dict
+
+
+def _get(d: dict, path: str):
+    for k in path.split("."):
+        d = d[k]
+    return d
+
+
+def _patched(cfg: Config, patch: dict) -> Config:
+    data = copy.deepcopy(config_to_dict(cfg))
+    for path, value in patch.items():
+        node = data
+        keys = path.split(".")
+        for k in keys[:-1]:
+            node = node[k]
+        node[keys[-1]] = value
+    return config_from_dict(data)
+
+
+def sweep_settings(cfg: Config, quick: bool = False) -> list[Setting]:
+    """The settings of the sweep: per group the config's own, the reference, one knob at a time.
+
+    Ray-tracing knobs only when the config ray-traces.
+    """
+    base = config_to_dict(cfg)
+    groups = ("raytrace", "waveform") if cfg.propagation.model == "raytrace" else ("waveform",)
+    out: list[Setting] = []
+    for g in groups:
+        knobs = [k for k in KNOBS if k.group == g]
+        levels = {k.name: (QUICK_LEVELS.get(k.name, k.levels) if quick else k.levels) for k in knobs}
+        ref_patch = {k.path: levels[k.name][-1] for k in knobs}
+        if g == "waveform":
+            # the time domain applies the paths at f_s / 8 after an ideal low-pass: exact inside
+            # the band (tests/unit/test_channel.py) and ~8x cheaper with hundreds of paths
+            ref_patch["channel.time_decimation"] = TIME_DECIMATION
+        out.append(Setting(g, "", None, {}, role="config"))
+        out.append(Setting(g, "", None, ref_patch, role="reference"))
+        for k in knobs:
+            own = _get(base, k.path)
+            for v in levels[k.name]:
+                if v == own:
+                    continue  # the config's own setting is the 'config' row
+                patch = {k.path: v}
+                if k.name == "domain" and v == "time":
+                    patch["channel.time_decimation"] = TIME_DECIMATION
+                out.append(Setting(g, k.name, v, patch))
+        if g == "waveform":
+            out.append(Setting(g, "noise seed", "other", {}, role="noise floor"))
+    return out
+
+
+# -- measurements ----------------------------------------------------------------------------
+def _first_path(cir, point_idx: np.ndarray):
+    """First valid path per link: delay [P, B] s and azimuth [P, B] rad (NaN: no path)."""
+    d = np.where(cir.valid, cir.delays, np.inf)[point_idx]          # [P, B, paths]
+    j = np.argmin(d, axis=-1)
+    has = np.isfinite(np.take_along_axis(d, j[..., None], -1)[..., 0])
+    tau = np.where(has, np.take_along_axis(d, j[..., None], -1)[..., 0], np.nan)
+    az = np.where(has, np.take_along_axis(cir.aoa_az[point_idx], j[..., None], -1)[..., 0], np.nan)
+    return tau, az
+
+
+def _pct(x: np.ndarray) -> tuple[float | None, float | None]:
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return None, None
+    return float(np.percentile(x, 50)), float(np.percentile(x, 95))
+
+
+def _chain_deviation(run: BenignRun, ref: BenignRun) -> dict:
+    # ToA differences are only meaningful relative to a BS of the same point: compare RSTDs
+    # (each BS against the reference BS 0), which is what positioning uses
+    rstd = (run.toa - run.toa[:, :1]) - (ref.toa - ref.toa[:, :1])
+    fp = np.abs(rstd[:, 1:]) * SPEED_OF_LIGHT
+    aoa = wrap_deg(run.az - ref.az)
+    both = np.isfinite(run.pos[:, 0]) & np.isfinite(ref.pos[:, 0])
+    pos = np.linalg.norm(run.pos - ref.pos, axis=1)[both]
+    out = {}
+    out["rstd_dev_m_p50"], out["rstd_dev_m_p95"] = _pct(fp)
+    out["aoa_dev_deg_p50"], out["aoa_dev_deg_p95"] = _pct(aoa)
+    out["position_dev_m_p50"], out["position_dev_m_p95"] = _pct(pos)
+    out["fix_mismatch_pct"] = float(100 * np.mean(np.isfinite(run.pos[:, 0]) != np.isfinite(ref.pos[:, 0])))
+    out["decision_agreement_pct"] = float(100 * np.mean(run.decisions == ref.decisions))
+    return out
+
+
+def _channel_deviation(cir, ref_cir, points: np.ndarray) -> dict:
+    tau, az = _first_path(cir, points)
+    tau_r, az_r = _first_path(ref_cir, points)
+    out = {}
+    out["first_path_dev_m_p50"], out["first_path_dev_m_p95"] = _pct(np.abs(tau - tau_r) * SPEED_OF_LIGHT)
+    out["first_path_aoa_dev_deg_p50"], out["first_path_aoa_dev_deg_p95"] = _pct(wrap_deg(az - az_r))
+    out["path_presence_mismatch_pct"] = float(100 * np.mean(np.isfinite(tau) != np.isfinite(tau_r)))
+    out["links_with_path_pct"] = float(100 * np.mean(np.isfinite(tau)))
+    return out
+
+
+def _geometry(cfg: Config, scene_root: Path):
+    from .scenario import build_geometry
+
+    key = f"margin_{cfg.scene.margin_m:g}"
+    return build_geometry(cfg, scene_root / key)
+
+
+def _trace(cfg: Config, geometry):
+    from .propagation.raytrace import trace
+
+    p = geometry.num_points
+    t = time.perf_counter()
+    prop = trace(geometry, cfg.propagation, cfg.seed, cache_dir=None,
+                 adversary_points=np.zeros(p, dtype=bool))
+    return prop.bs_ue, (time.perf_counter() - t) / (3 * p)
+
+
+def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int | None = None,
+              progress: Progress | None = None) -> BenchResult:
+    """Sweep the fidelity settings of ``cfg`` (see the module docstring).
+
+    :param points: trajectory points evaluated (default: 6 with ``quick``, else 40; at most the
+        config's trajectory)
+    """
+    from .engine import run_keys
+    from .propagation.stochastic import uma_propagation
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    n_pts = points if points is not None else (6 if quick else 40)
+    n_pts = int(min(n_pts, cfg.trajectory.num_points))
+    if n_pts < 2:
+        raise ValueError(f"Argument `points` must be >= 2, not {n_pts}")
+    settings = sweep_settings(cfg, quick)
+    total = len(settings)
+    geo0 = _geometry(cfg, out / "scenes")
+    idx = np.unique(np.linspace(0, geo0.num_points - 1, n_pts).round().astype(int))
+    keys = run_keys(cfg, len(geo0.bs_pos))
+    t_start = time.perf_counter()
+    done = 0
+    if progress:
+        progress("bench", 0, total)
+
+    def tick(label: str) -> None:
+        nonlocal done
+        done += 1
+        if progress:
+            progress("bench", done, total)
+        log.info("bench %d/%d: %s", done, total, label)
+
+    # the config's own propagation: the waveform group's CIRs
+    if cfg.propagation.model == "raytrace":
+        bs_ue0, t_link0 = _trace(cfg, geo0)
+    else:
+        t = time.perf_counter()
+        bs_ue0 = uma_propagation(geo0, cfg.propagation, cfg.seed).bs_ue
+        t_link0 = (time.perf_counter() - t) / (3 * geo0.num_points)
+
+    runs: dict[int, BenignRun] = {}
+    cirs: dict[int, object] = {}
+    # ray-tracing group: trace, then the config's chain on the traced CIRs
+    rt = [s for s in settings if s.group == "raytrace"]
+    for s in sorted(rt, key=lambda s: s.role != "reference"):   # reference first
+        c = _patched(cfg, s.patch)
+        geo = _geometry(c, out / "scenes") if c.scene.margin_m != cfg.scene.margin_m else geo0
+        if not np.allclose(geo.ue.pos, geo0.ue.pos):
+            raise RuntimeError(f"{s.label}: the trajectory depends on the crop margin")
+        if s.role == "config":
+            bs_ue, t_link = bs_ue0, t_link0
+        else:
+            bs_ue, t_link = _trace(c, geo)
+        s.time_s, s.time_unit = t_link, "link"
+        cirs[id(s)] = bs_ue
+        runs[id(s)] = benign_chain(cfg, geo0, bs_ue, keys, idx)
+        tick(s.label)
+    if rt:
+        ref = next(s for s in rt if s.role == "reference")
+        for s in rt:
+            s.metrics = _channel_deviation(cirs[id(s)], cirs[id(ref)], idx)
+            s.metrics.update(_chain_deviation(runs[id(s)], runs[id(ref)]))
+    # waveform group, on the config's CIRs
+    wf = [s for s in settings if s.group == "waveform"]
+    for s in sorted(wf, key=lambda s: s.role != "reference"):
+        c = _patched(cfg, s.patch)
+        r = benign_chain(c, geo0, bs_ue0, keys, idx,
+                       noise="noise-floor" if s.role == "noise floor" else "noise")
+        s.time_s, s.time_unit = r.seconds_per_point, "point"
+        runs[id(s)] = r
+        tick(s.label)
+    ref = next(s for s in wf if s.role == "reference")
+    own = next(s for s in wf if s.role == "config")
+    for s in wf:
+        # the noise floor is the config's setting against itself with other noise draws
+        base = own if s.role == "noise floor" else ref
+        s.metrics = _chain_deviation(runs[id(s)], runs[id(base)])
+    for g in {s.group for s in settings}:
+        grp = [s for s in settings if s.group == g and s.role != "noise floor"]
+        front = pareto_front([s.time_s for s in grp],
+                             [s.metrics.get("position_dev_m_p95") for s in grp])
+        for s, f in zip(grp, front):
+            s.pareto = bool(f)
+    meta = {"points": idx.tolist(), "num_points": int(idx.size), "quick": quick,
+            "propagation_model": cfg.propagation.model, "seed": cfg.seed,
+            "wall_s": time.perf_counter() - t_start,
+            "reference": {g: next(s.patch for s in settings if s.group == g and s.role == "reference")
+                          for g in {s.group for s in settings}}}
+    return BenchResult(settings, meta)
+
+
+def pareto_front(cost, error) -> np.ndarray:
+    """[n] bool, not dominated: no other point is at most as costly and at most as wrong, and
+    strictly better in one. Points without an error (None/NaN) are never on the front; an
+    error of 0 (the reference against itself) is a valid point."""
+    c = np.asarray(cost, dtype=float)
+    e = np.asarray([np.nan if v is None else v for v in error], dtype=float)
+    ok = np.isfinite(c) & np.isfinite(e)
+    front = np.zeros(c.size, dtype=bool)
+    for i in np.flatnonzero(ok):
+        dom = ok & (c <= c[i]) & (e <= e[i]) & ((c < c[i]) | (e < e[i]))
+        front[i] = not np.any(dom)
+    return front
+
+
+# -- reporting -------------------------------------------------------------------------------
+CSV_FIELDS = ("group", "knob", "value", "role", "label", "time_s", "time_unit", "pareto",
+              "first_path_dev_m_p50", "first_path_dev_m_p95", "first_path_aoa_dev_deg_p50",
+              "first_path_aoa_dev_deg_p95", "path_presence_mismatch_pct", "links_with_path_pct",
+              "rstd_dev_m_p50", "rstd_dev_m_p95", "aoa_dev_deg_p50", "aoa_dev_deg_p95",
+              "position_dev_m_p50", "position_dev_m_p95", "fix_mismatch_pct",
+              "decision_agreement_pct")
+
+
+def _row(s: Setting) -> dict:
+    r = {"group": s.group, "knob": s.knob, "value": s.value, "role": s.role, "label": s.label,
+         "time_s": s.time_s, "time_unit": s.time_unit, "pareto": s.pareto}
+    r.update({k: s.metrics.get(k) for k in CSV_FIELDS if k not in r})
+    return r
+
+
+def _fmt(v, nd=2) -> str:
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "n/a"
+    if isinstance(v, bool):
+        return "yes" if v else ""
+    if isinstance(v, float):
+        return f"{v:.{nd}f}"
+    return str(v)
+
+
+def markdown_table(res: BenchResult) -> str:
+    lines = []
+    for g in ("raytrace", "waveform"):
+        grp = [s for s in res.settings if s.group == g]
+        if not grp:
+            continue
+        if g == "raytrace":
+            lines += ["| setting | s/link | links with a path % | first path dev. p95 m | "
+                      "first-path AoA dev. p95 deg | position dev. p50 / p95 m | decisions agree % | Pareto |",
+                      "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+            for s in grp:
+                m = s.metrics
+                lines.append(f"| {s.label} | {_fmt(s.time_s, 4)} | {_fmt(m.get('links_with_path_pct'), 1)} | "
+                             f"{_fmt(m.get('first_path_dev_m_p95'))} | {_fmt(m.get('first_path_aoa_dev_deg_p95'), 1)} | "
+                             f"{_fmt(m.get('position_dev_m_p50'))} / {_fmt(m.get('position_dev_m_p95'))} | "
+                             f"{_fmt(m.get('decision_agreement_pct'), 1)} | {_fmt(s.pareto)} |")
+        else:
+            lines += ["| setting | s/point | RSTD dev. p95 m | AoA dev. p95 deg | "
+                      "position dev. p50 / p95 m | decisions agree % | Pareto |",
+                      "| --- | --- | --- | --- | --- | --- | --- |"]
+            for s in grp:
+                m = s.metrics
+                lines.append(f"| {s.label} | {_fmt(s.time_s, 3)} | {_fmt(m.get('rstd_dev_m_p95'))} | "
+                             f"{_fmt(m.get('aoa_dev_deg_p95'), 1)} | {_fmt(m.get('position_dev_m_p50'))} / "
+                             f"{_fmt(m.get('position_dev_m_p95'))} | {_fmt(m.get('decision_agreement_pct'), 1)} | "
+                             f"{_fmt(s.pareto)} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
+    """bench.csv, bench.json, bench.md and bench_pareto.png in ``out_dir``; returns the paths."""
+    import csv
+
+    from .report.plots import plot_pareto
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = [_row(s) for s in res.settings]
+    with open(out / "bench.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
+    (out / "bench.json").write_text(json.dumps({"meta": res.meta, "settings": rows}, indent=2))
+    md = (f"# Fidelity sweep ({res.meta['num_points']} points, propagation "
+          f"{res.meta['propagation_model']}, seed {res.meta['seed']})\n\n"
+          "Deviations are from the reference (highest level of every knob of the group). "
+          "The noise-floor row is the config's setting against itself with other noise draws.\n\n"
+          + markdown_table(res))
+    (out / "bench.md").write_text(md)
+    plot_pareto(rows, out / "bench_pareto.png")
+    return {k: out / k for k in ("bench.csv", "bench.json", "bench.md", "bench_pareto.png")}

@@ -1,0 +1,126 @@
+"""Benign per-point chain diagnostics: timing, angle and position errors against the geometry.
+
+Used by ``veriloc-rt bench`` (deviation of a fidelity setting from the reference) and
+``veriloc-rt compare`` (ray tracing against TR 38.901 UMa). The chain is the run's standard-PRS
+chain and every point draws its noise from the run's stream (``stream(seed, "noise", 0, i)``),
+so the numbers are those of the ``none`` scenario of ``veriloc-rt run``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Config
+from .constants import SPEED_OF_LIGHT
+from .rng import stream
+
+__all__ = ["BenignRun", "benign_chain", "wrap_deg"]
+
+
+@dataclass
+class BenignRun:
+    """The standard chain on benign points.
+
+    points : [P] int64, trajectory indices
+    toa : [P, B] float64, s, absolute ToA estimate (NaN: BS not detected)
+    los_delay : [P, B] float64, s, straight-line BS -> UE delay (the ToA a perfect receiver
+        would report in line of sight)
+    az : [P, B] float64, rad, AoA estimate resolved against the true geometry (NaN: none)
+    geo_az : [P, B] float64, rad, azimuth from the UE towards each BS
+    pos : [P, 2] float64, m, DL fix (NaN: none); truth : [P, 2] float64, m
+    decisions : [P, 4] bool: fix obtained, HMAC tags of every BS valid, ABSA (against the true
+        geometry), DL-UL handshake
+    seconds_per_point : float, s, chain time only, the first point excluded (it also fills
+        the chain's caches) when there are two or more
+    """
+
+    points: np.ndarray
+    toa: np.ndarray
+    los_delay: np.ndarray
+    az: np.ndarray
+    geo_az: np.ndarray
+    pos: np.ndarray
+    truth: np.ndarray
+    decisions: np.ndarray
+    seconds_per_point: float
+
+    @property
+    def toa_bias_m(self) -> np.ndarray:
+        """[P, B] float64, m, (ToA - LoS delay) c; only meaningful with a common clock, i.e. up
+        to the UE's clock offset, which this simulator does not model (BSs transmit at t = 0)."""
+        return (self.toa - self.los_delay) * SPEED_OF_LIGHT
+
+    @property
+    def rstd_error_m(self) -> np.ndarray:
+        """[P, B - 1] float64, m, RSTD error of each BS against the reference BS 0."""
+        est = self.toa[:, 1:] - self.toa[:, :1]
+        true = self.los_delay[:, 1:] - self.los_delay[:, :1]
+        return (est - true) * SPEED_OF_LIGHT
+
+    @property
+    def aoa_error_deg(self) -> np.ndarray:
+        """[P, B] float64, deg, |AoA - geometric azimuth| wrapped to [0, 180]."""
+        return wrap_deg(self.az - self.geo_az)
+
+    @property
+    def position_error_m(self) -> np.ndarray:
+        """[P] float64, m, horizontal DL error (NaN without a fix)."""
+        return np.linalg.norm(self.pos - self.truth, axis=1)
+
+
+def wrap_deg(a) -> np.ndarray:
+    """|a| wrapped to [0, 180] deg, a in rad."""
+    return np.abs((np.rad2deg(a) + 180.0) % 360.0 - 180.0)
+
+
+def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise",
+                 progress=None) -> BenignRun:
+    """Run ``cfg``'s standard chain on ``bs_ue`` at ``points`` without an adversary.
+
+    :param geometry: the run's :class:`~veriloc_rt.scenario.Geometry` (true UE positions)
+    :param bs_ue: CIR [num_points, num_bs] serving BS -> UE
+    :param keys: by BS id (:func:`veriloc_rt.engine.run_keys`)
+    :param noise: name of the noise stream (another name: other noise draws)
+    :param progress: called as ``progress(done, total)``
+    """
+    from .detectors import ABSADetector, HandshakeDetector, TagDetector
+    from .detectors.absa import geometric_azimuth
+    from .receiver.chain import PositioningChain
+
+    points = np.asarray(points, dtype=np.int64)
+    chain = PositioningChain(cfg.nr, cfg.security, cfg.channel, cfg.receiver,
+                             cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys)
+    d = cfg.detectors
+    hmac, absa, hs = TagDetector(d.hmac), ABSADetector(d.absa), HandshakeDetector(d.handshake)
+    n, b = len(points), chain.num_bs
+    toa, az = np.full((n, b), np.nan), np.full((n, b), np.nan)
+    pos = np.full((n, 2), np.nan)
+    dec = np.zeros((n, 4), dtype=bool)
+    truth = geometry.ue.pos[points]
+    bs = bs_ue.tx_pos[points]
+    los_delay = np.linalg.norm(bs - truth[:, None, :], axis=-1) / SPEED_OF_LIGHT
+    geo_az = np.stack([geometric_azimuth(bs[r], truth[r]) for r in range(n)]) if n else np.zeros((0, b))
+    elapsed = 0.0
+    for r, i in enumerate(points):
+        t = time.perf_counter()
+        res = chain(bs_ue, int(i), stream(cfg.seed, noise, 0, int(i)), frame=int(i),
+                    reference_azimuth=geo_az[r])
+        if r > 0 or n == 1:   # the first call also fills the chain's caches (PRS, keys, FFT plans)
+            elapsed += time.perf_counter() - t
+        toa[r] = res.toa_s
+        az[r] = res.azimuth
+        ok = res.position.ok
+        if ok:
+            pos[r] = res.position.position[:2]
+        ul = res.uplink.position if res.uplink is not None else None
+        dec[r] = (ok, hmac(res.tags_valid, res.detected).valid,
+                  absa(res.azimuth, bs[r], reference_position=truth[r]).valid,
+                  hs(res.position.position if ok else None,
+                     ul.position if (ul is not None and ul.ok) else None).valid)
+        if progress:
+            progress(r + 1, n)
+    return BenignRun(points, toa, los_delay, az, geo_az, pos, truth[:, :2], dec,
+                     elapsed / max(n - 1, 1))
