@@ -271,6 +271,12 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
 
     # the config's own propagation: the waveform group's CIRs
     if cfg.propagation.model == "raytrace":
+        # warm-up, untimed: the first trace of a process also starts Dr.Jit (LLVM back end,
+        # scene load), a one-off cost that would otherwise be charged to the first setting
+        import dataclasses
+
+        _trace(cfg, dataclasses.replace(geo0, ue=geo0.ue.head(1), adversary=geo0.adversary.head(1),
+                                        serving=geo0.serving[:1]))
         bs_ue0, t_link0 = _trace(cfg, geo0)
     else:
         t = time.perf_counter()

@@ -25,7 +25,7 @@ pytestmark = pytest.mark.raytrace
 @pytest.fixture(scope="module")
 def bench_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    assert main(["bench", CONFIG, "--quick", "--points", "3", "--out", str(out)]) == 0
+    assert main(["bench", CONFIG, "--quick", "--points", "4", "--out", str(out)]) == 0
     return out
 
 
@@ -41,12 +41,13 @@ def test_bench_files_and_numbers(bench_out):
     assert {r["group"] for r in rows} == {"raytrace", "waveform"}
     for r in rows:
         assert math.isfinite(float(r["time_s"])) and float(r["time_s"]) > 0, r["label"]
-        if r["role"] != "noise floor":
-            assert r["position_dev_m_p95"] != "" and math.isfinite(float(r["position_dev_m_p95"]))
+        if r["position_dev_m_p95"] != "":   # empty: no point where both have a fix
+            assert math.isfinite(float(r["position_dev_m_p95"]))
         assert 0.0 <= float(r["decision_agreement_pct"]) <= 100.0
     for g in ("raytrace", "waveform"):
         grp = [r for r in rows if r["group"] == g]
         ref = next(r for r in grp if r["role"] == "reference")
+        assert any(r["role"] == "config" for r in grp)
         # the reference against itself: no deviation at all (same CIRs, same noise draws)
         assert float(ref["position_dev_m_p95"]) == 0.0
         assert float(ref["decision_agreement_pct"]) == 100.0
@@ -55,7 +56,7 @@ def test_bench_files_and_numbers(bench_out):
     rt_ref = next(r for r in rows if r["group"] == "raytrace" and r["role"] == "reference")
     assert float(rt_ref["first_path_dev_m_p95"]) == 0.0
     meta = json.loads((bench_out / "bench.json").read_text())["meta"]
-    assert meta["num_points"] == 3 and meta["quick"] is True
+    assert meta["num_points"] == 4 and meta["quick"] is True
 
 
 @pytest.fixture(scope="module")

@@ -147,6 +147,8 @@ class LinkTracer:
         :param src, dst: [num_links, 3] float64, m
         :returns: RawPaths with one row per link, in Sionna's source -> target orientation
         """
+        if len(src) == 0:   # nothing to trace (e.g. an adversary that is never active)
+            return RawPaths.empty(0, max(self.fid.max_depth, 1))
         src_first, src_id = _unique_rows(_key(src))
         dst_first, dst_id = _unique_rows(_key(dst))
         pair_keys = np.stack([src_id, dst_id], axis=1)

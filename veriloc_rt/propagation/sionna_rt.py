@@ -55,6 +55,15 @@ class RawPaths:
                                       else order[..., None], axis=1) for f in self.FIELDS}
         return RawPaths(**pick)
 
+    @classmethod
+    def empty(cls, num_links: int, max_depth: int) -> "RawPaths":
+        """``num_links`` links without a path (one invalid padding path each)."""
+        z = np.zeros((num_links, 1))
+        return cls(tau=np.full((num_links, 1), -1.0), a=z.astype(np.complex128), theta_r=z.copy(),
+                   phi_r=z.copy(), theta_t=z.copy(), phi_t=z.copy(),
+                   interactions=np.zeros((num_links, 1, max_depth), np.uint8),
+                   valid=np.zeros((num_links, 1), bool))
+
     @staticmethod
     def concat(parts: list["RawPaths"]) -> "RawPaths":
         width = max(p.tau.shape[1] for p in parts)

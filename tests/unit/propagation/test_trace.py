@@ -89,3 +89,16 @@ def test_doppler_matches_sionna(tmp_path):
     theirs = get(paths.doppler)
     assert valid.sum() == 2
     assert np.allclose(ours, theirs, atol=1e-3 + 1e-5 * np.abs(theirs).max())
+
+
+@pytest.mark.raytrace
+def test_trace_with_adversary_never_active(tmp_path):
+    """No active adversary point (a run of the 'none' scenario only, the fidelity bench): the
+    adversary links are empty rather than an error (was: AttributeError on None.tau)."""
+    cfg = config_from_dict(dict(TINY, trajectory={"num_points": 3, "region_m": 70.0}))
+    geo = build_geometry(cfg, tmp_path / "scene")
+    prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=None,
+                 adversary_points=np.zeros(geo.num_points, bool))
+    assert np.all(prop.adv_ue.tx_index == NO_TX) and not prop.adv_ue.valid.any()
+    assert not prop.bs_adv.valid.any()
+    assert prop.bs_ue.delays.shape[:2] == (3, 3) and prop.stats["adversary_links"] == 0
