@@ -13,7 +13,7 @@ and the hyperbola asymptotes for 3 BSs. Boundaries found (2026-11):
   become quadratic in the offset) and the solver reports ``no_convergence`` in 12 % of the
   fixes (a service failure, never NaN).
 * **exactly collinear BSs**: both mirror images of the UE fit exactly; the solver returns one
-  of them with ``ambiguous == False`` (see the xfail test: a library bug).
+  of them with ``ambiguous == False`` before the fix; both twins are now reported.
 * **inconsistent RSTDs, 3 BSs** (triangle R = 289 m): zero redundancy; a bias b on one RSTD
   leaves a zero residual and moves the fix (36 m at b = 50 m, 387 m at 300 m). It is reported
   only (a) as ``diverged`` once the fix recedes past 10 km, just below the bias b_inf =
@@ -101,9 +101,6 @@ def test_linearised_gdop_breaks_down_near_collinearity():
     assert 0.6 < ok < 0.97
 
 
-@pytest.mark.xfail(strict=True, reason="library bug: with exactly collinear BSs, chan_initialisation "
-                   "returns no start (rank-deficient), only the grid start is refined, and the "
-                   "mirror image of the fix (an exact fit) is neither found nor flagged")
 @pytest.mark.parametrize("num_bs", [3, 4])
 def test_exactly_collinear_bs_mirror_fix_is_flagged(num_bs):
     xs = [-400.0, 0.0, 400.0] if num_bs == 3 else [-400.0, -100.0, 150.0, 400.0]
@@ -111,8 +108,13 @@ def test_exactly_collinear_bs_mirror_fix_is_flagged(num_bs):
     ue = np.array([60.0, 30.0, UE_H])
     res = Multilaterator(ue_height_m=UE_H)(bs, _rstd(bs, ue))
     near_truth = np.linalg.norm(res.position[:2] - ue[:2]) < 1.0
-    # today: ok, not ambiguous, position (60, -30): 60 m off
+    # the mirror image (60, -30) fits exactly as well: it must be reported, not chosen
+    # silently (was: ok, not ambiguous, 60 m off; fixed by mirrored starts about the BS line)
     assert near_truth or res.ambiguous or not res.ok
+    mirror = ue[:2] * [1.0, -1.0]
+    fixes = [res.position[:2]] + [a[:2] for a in res.alternatives]
+    assert any(np.linalg.norm(f - ue[:2]) < 1.0 for f in fixes)
+    assert any(np.linalg.norm(f - mirror) < 1.0 for f in fixes)
 
 
 # -- inconsistent RSTDs ----------------------------------------------------------------------

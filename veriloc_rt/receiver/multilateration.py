@@ -107,6 +107,17 @@ def gdop(bs_pos, ue_pos, ref_index: int = 0) -> float:
     return float(np.sqrt(np.trace(np.linalg.inv(info))))
 
 
+def _bs_line(bs_pos: np.ndarray, tol_m: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | None:
+    """(point, unit direction) of the line through the BSs' horizontal positions when they
+    are collinear within ``tol_m``, else None."""
+    s = bs_pos[:, :2]
+    c = s.mean(axis=0)
+    _, sv, vt = np.linalg.svd(s - c)
+    if sv[0] <= tol_m or (sv.size > 1 and sv[1] > tol_m):
+        return None
+    return c, vt[0]
+
+
 def chan_initialisation(bs_pos: np.ndarray, range_diff_m: np.ndarray, ref_index: int,
                         ue_height_m: float) -> list[np.ndarray]:
     """Closed-form candidates (x, y) from range differences, known heights (Chan / Fang).
@@ -220,6 +231,13 @@ class Multilaterator:
         centroid = bs[:, :2].mean(axis=0)
         starts = chan_initialisation(bs, rd, ref, self.ue_height_m)
         starts.append(self._grid_start(bs, rd, ref, others))
+        line = _bs_line(bs)
+        if line is not None:
+            # collinear BSs: the fit is symmetric about their line, so the mirror image of
+            # every start is an equally good one; refining both finds the twin fix, which is
+            # then reported (``alternatives``, ``ambiguous``) instead of a silent coin toss
+            p0, u = line
+            starts += [2.0 * (p0 + u * ((x - p0) @ u)) - x for x in list(starts)]
         sols = []
         for x0 in starts:
             try:
