@@ -193,16 +193,21 @@ def main() -> None:
     ap.add_argument("--rt-cache", default=None)
     ap.add_argument("--rt-scene", default="/tmp/scene100")
     ap.add_argument("--rt-points", type=int, default=100)
+    ap.add_argument("--compare", nargs="*", default=["pathloss_only", "fast_fading", "rt"],
+                    choices=["pathloss_only", "fast_fading", "rt"],
+                    help="channels of the default-vs-reference comparison")
     ap.add_argument("--skip", nargs="*", default=[], choices=["compare", "uma", "rt"])
     args = ap.parse_args()
     if "compare" not in args.skip:
-        cir, ue = synthetic_uma(max(args.ref_points, 2), "pathloss_only", SEED)
-        compare("UMa pathloss_only", cir, ue, args.ref_points)
-        # ~400 paths per link: the exact reference costs ~280 s per point; decimated by 8 it is
-        # exact inside the band (tests/unit/test_channel.py) and ~10x cheaper
-        cir, ue = synthetic_uma(max(args.ref_points, 2), "fast_fading", SEED)
-        compare("UMa fast_fading", cir, ue, args.ref_points, decimation=8)
-        if args.rt_cache:
+        if "pathloss_only" in args.compare:
+            cir, ue = synthetic_uma(max(args.ref_points, 2), "pathloss_only", SEED)
+            compare("UMa pathloss_only", cir, ue, args.ref_points)
+        if "fast_fading" in args.compare:
+            # ~400 paths per link: the exact reference costs ~280 s per point; decimated by 8 it
+            # is exact inside the band (tests/unit/test_channel.py) and ~10x cheaper
+            cir, ue = synthetic_uma(max(args.ref_points, 2), "fast_fading", SEED)
+            compare("UMa fast_fading", cir, ue, args.ref_points, decimation=8)
+        if args.rt_cache and "rt" in args.compare:
             cir, ue = load_rt(args.rt_cache, args.rt_scene, args.rt_points)
             compare("ray-traced", cir, ue, args.ref_points)
     if "uma" not in args.skip:
