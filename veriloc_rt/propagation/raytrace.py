@@ -253,6 +253,8 @@ def build_cir(raw: RawPaths, shape: tuple[int, int], tx_index: np.ndarray, tx_po
     """
     raw = raw.keep_strongest(max_paths)
     P, T = shape
+    if raw.tau.shape[1] == 0:   # no link has a path (e.g. no diffraction in a deep canyon):
+        raw = RawPaths.empty(raw.num_links, max(raw.interactions.shape[-1], 1))  # keep one slot
     n = raw.tau.shape[1]
 
     def g(x):

@@ -102,3 +102,26 @@ def test_trace_with_adversary_never_active(tmp_path):
     assert np.all(prop.adv_ue.tx_index == NO_TX) and not prop.adv_ue.valid.any()
     assert not prop.bs_adv.valid.any()
     assert prop.bs_ue.delays.shape[:2] == (3, 3) and prop.stats["adversary_links"] == 0
+
+
+@pytest.mark.raytrace
+def test_no_path_anywhere_gives_a_usable_cir(tmp_path):
+    """With every interaction switched off but LoS, in a canyon whose BSs are all hidden, no
+    link has a path: the CIR keeps one invalid path slot per link (was: zero slots, and the
+    chain failed on an empty minimum) and the chain reports a service failure."""
+    from veriloc_rt.engine import run_keys
+    from veriloc_rt.diagnostics import benign_chain
+
+    cfg = config_from_dict(dict(TINY, trajectory={"num_points": 3, "region_m": 70.0},
+                                propagation={"raytrace": {"rays_per_source": 1000, "max_depth": 1,
+                                                          "specular_reflection": False,
+                                                          "diffraction": False}}))
+    geo = build_geometry(cfg, tmp_path / "scene")
+    prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=None,
+                 adversary_points=np.zeros(geo.num_points, bool))
+    cir = prop.bs_ue
+    if cir.valid.any():
+        pytest.skip("a BS is in line of sight in this draw")
+    assert cir.delays.shape == (3, 3, 1) and np.all(cir.delays == -1.0)
+    b = benign_chain(cfg, geo, cir, run_keys(cfg, len(geo.bs_pos)), np.arange(3))
+    assert not np.isfinite(b.pos).any() and not b.decisions[:, 0].any()
