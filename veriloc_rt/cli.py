@@ -43,11 +43,12 @@ class ProgressBar:
         self.last = now
         frac = done / total if total else 1.0
         elapsed = now - self.start
-        eta = elapsed / frac - elapsed if frac > 0 else float("nan")
+        eta = elapsed / frac - elapsed if frac > 0 else float("inf")
         bar = "#" * int(frac * self.width)
         lead = "\r" if self.interval < 1.0 else ""
+        eta_s = f"{eta:5.0f}s" if eta != float("inf") else "    ?"
         self.stream.write(f"{lead}{label:<12} [{bar:<{self.width}}] {done}/{total} "
-                          f"{elapsed:5.0f}s elapsed, ETA {eta:5.0f}s")
+                          f"{elapsed:5.0f}s elapsed, ETA {eta_s}")
         if lead == "" and done < total:
             self.stream.write("\n")
         if done >= total:
@@ -79,8 +80,20 @@ def cmd_run(args) -> int:
     out = Path(args.out)
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers", f"got {args.workers}, expected an integer >= 1")
-    workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
-    res = run(cfg, out, progress=ProgressBar(), resume=args.resume, workers=workers)
+    if args.scheduler is not None and args.workers is not None:
+        raise InputError("--workers", "not with --scheduler (the cluster's workers compute)")
+    workers = (1 if args.scheduler is not None else args.workers if args.workers is not None
+               else min(2, os.cpu_count() or 1))
+    if args.verbose < 2 and (args.scheduler is not None
+                             or (cfg.run.realisations > 1 and workers > 1)):
+        import distributed  # noqa: F401 - its import sets its loggers to INFO
+
+        # Dask's start-up and connection lines only with -vv
+        logging.getLogger("distributed").setLevel(logging.WARNING)
+    if cfg.run.realisations > 1:
+        return _run_montecarlo(cfg, out, args, workers)
+    res = run(cfg, out, progress=ProgressBar(), resume=args.resume, workers=workers,
+              scheduler=args.scheduler)
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
@@ -101,6 +114,52 @@ def cmd_run(args) -> int:
           f"{t.get('detectors_total', 0):.1f} s; total {t['total']:.1f} s")
     print(f"wrote {out}/ (metrics.json, <scenario>_results.csv, run.json, *.png, scene/)")
     return 0
+
+
+def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
+    from .montecarlo import run_montecarlo
+
+    n = cfg.run.realisations
+    where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler is not None
+             else f"on a local Dask cluster of {min(workers, n)} processes" if workers > 1
+             else "one after the other")
+    print(f"Monte Carlo: {n} realisations of {cfg.trajectory.num_points} points, {where}",
+          flush=True)
+    res = run_montecarlo(cfg, out, progress=ProgressBar(), workers=workers,
+                         scheduler=args.scheduler, resume=args.resume)
+    print(format_montecarlo(res.metrics))
+    t = res.timing_s
+    print(f"time: {t['total']:.1f} s wall, {t['realisations_total']:.1f} s summed over the "
+          f"realisations")
+    print(f"wrote {out}/ (metrics.json, montecarlo.csv, montecarlo_detection_rates.png, "
+          f"outcomes.png, run.json; realisation_*/ hold each realisation's run)")
+    return 0
+
+
+def _pm(m: dict, group: str, key: str) -> str:
+    """'mean±half' of an aggregated metric, 11 characters."""
+    v = (m.get(group) or {}).get(key)
+    h = (m["ci95"].get(group) or {}).get(key)
+    text = "n/a" if v is None else f"{v:.1f}±{h:.1f}" if h is not None else f"{v:.1f}"
+    return f"{text:>11s}"
+
+
+def format_montecarlo(metrics: dict) -> str:
+    """Mean ± 95 % CI half-width of the correct-decision rates and outcomes, as text."""
+    from .run_points import DETECTORS, OUTCOMES
+
+    lines = [f"mean ± 95 % confidence half-width over {metrics['realisations']} realisations"]
+    lines.append("scenario    " + " ".join(f"{d:>11s}" for d in DETECTORS)
+                 + "  | " + " ".join(f"{o:>11s}" for o in ("success", "large", "DoS"))
+                 + " (std PRS)")
+    for name, m in metrics["scenarios"].items():
+        if not m.get("num_points"):
+            continue
+        rates = " ".join(_pm(m, "correct_decision_rate", d) for d in DETECTORS)
+        outs = " ".join(_pm(m, "outcomes", k) for k in OUTCOMES)
+        lines.append(f"{name:11s} {rates}  | {outs}")
+    lines.append("correct-decision rate and outcomes in %, as in a single run")
+    return "\n".join(lines)
 
 
 def _cell(v) -> str:
@@ -162,6 +221,35 @@ def cmd_keys(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    from .bench import markdown_table, run_bench, write_bench
+
+    cfg = _load(args.config)
+    if args.points is not None and args.points < 2:
+        raise InputError("--points", f"got {args.points}, expected an integer >= 2")
+    t = time.perf_counter()
+    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar())
+    files = write_bench(res, args.out)
+    print(markdown_table(res))
+    print(f"{res.meta['num_points']} points, {len(res.settings)} settings in "
+          f"{time.perf_counter() - t:.0f} s; wrote " + ", ".join(str(f) for f in files.values()))
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from .compare import format_comparison, run_compare
+
+    cfg = _load(args.config, args.points, args.seed)
+    workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
+    if workers < 1:
+        raise InputError("--workers", f"got {workers}, expected an integer >= 1")
+    res = run_compare(cfg, args.out, progress=ProgressBar(), workers=workers)
+    print(format_comparison(res))
+    print(f"wrote {args.out}/ (comparison.md, comparison.json, comparison_*.csv, *.png, "
+          "raytrace/, uma/)")
+    return 0
+
+
 def cmd_config(args) -> int:
     from .config import config_schema, config_to_dict
 
@@ -182,7 +270,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--points", type=int, help="number of trajectory points")
     r.add_argument("--seed", type=int, help="override the config's seed")
     r.add_argument("--workers", type=int, help="processes for the per-point chains "
-                   "(default: 2, or 1 on a one-core machine); results do not depend on it")
+                   "(default: 2, or 1 on a one-core machine); with run.realisations > 1, "
+                   "the processes of a local Dask cluster; results do not depend on it")
+    r.add_argument("--scheduler", metavar="ADDR", help="compute on the Dask cluster at ADDR "
+                   "(tcp://host:8786): realisations as tasks, or trajectory chunks of a single "
+                   "run; results do not depend on it")
     r.add_argument("--resume", action="store_true",
                    help="keep the points already in --out (same config) and continue after them")
     r.set_defaults(func=cmd_run)
@@ -196,6 +288,23 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--num-bs", type=int, help="number of BSs (default: those the config uses)")
     k.add_argument("--force", action="store_true", help="overwrite existing key files")
     k.set_defaults(func=cmd_keys)
+    cp = sub.add_parser("compare", help="the same topology, trajectory and attacks through ray "
+                        "tracing and through TR 38.901 UMa")
+    cp.add_argument("config", nargs="?", help="JSON config file (its propagation.model is ignored)")
+    cp.add_argument("--out", required=True, help="output folder")
+    cp.add_argument("--points", type=int, help="number of trajectory points")
+    cp.add_argument("--seed", type=int, help="override the config's seed")
+    cp.add_argument("--workers", type=int, help="processes for the per-point chains (default 2)")
+    cp.set_defaults(func=cmd_compare)
+    b = sub.add_parser("bench", help="sweep the fidelity settings: time vs accuracy table and "
+                       "chart with the Pareto front")
+    b.add_argument("config", nargs="?", help="JSON config file (default: the built-in default)")
+    b.add_argument("--out", required=True, help="output folder")
+    b.add_argument("--quick", action="store_true", help="fewer levels and 6 points (a few "
+                   "minutes; for CI)")
+    b.add_argument("--points", type=int, help="trajectory points evaluated (default 6 with "
+                   "--quick, else 40)")
+    b.set_defaults(func=cmd_bench)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
     c.add_argument("action", choices=("schema", "show"))
     c.add_argument("config", nargs="?", help="JSON config file (for show)")

@@ -187,7 +187,8 @@ class ThreatsConfig:
 
 @dataclass(frozen=True)
 class RunConfig:
-    """What ``veriloc-rt run`` evaluates: scenarios, attack window, outcome threshold."""
+    """What ``veriloc-rt run`` evaluates: scenarios, attack window, outcome threshold,
+    Monte Carlo realisations."""
 
     scenarios: tuple[str, ...] = param(SCENARIOS, "scenarios evaluated in one run, each over the "
                                        "whole trajectory: 'none', 'fbs', 'meaconing', 'jamming'")
@@ -208,6 +209,11 @@ class RunConfig:
                         "call per point); 'shared': it reuses the HMAC-tagged run's tag checks "
                         "with the same verdict rule (same decoder, codeword lengths differ)",
                         choices=("separate", "shared"))
+    realisations: int = param(1, "Monte Carlo realisations: complete runs, realisation r with "
+                              "BS layout topology.iteration + r and its own draws (seed derived "
+                              "from the seed; realisation 0 is the plain run); metrics.json then "
+                              "holds the mean and 95 % confidence interval over them",
+                              lo=1, hi=100_000)
 
     def validate(self, path: str = "run") -> None:
         if not self.scenarios:

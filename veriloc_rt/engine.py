@@ -6,6 +6,11 @@ point with :class:`~veriloc_rt.run_points.ScenarioRunner`, writing each row to
 ``<scenario>_results.csv`` as soon as it exists. ``resume=True`` keeps the rows already on disk
 (the config must be the one that produced them) and continues after them; the result is the
 same as an uninterrupted run. At the end it writes ``metrics.json``, ``run.json`` and the plots.
+
+Executors: the detectors carry state from point to point and run here, in order; the chains of
+the points ahead go to forked local processes (``workers``) or, in trajectory chunks, to a Dask
+cluster (``scheduler``), with the serial run's numbers either way (see the executors in
+:mod:`~veriloc_rt.run_points`). Monte Carlo over realisations: :mod:`~veriloc_rt.montecarlo`.
 """
 
 from __future__ import annotations
@@ -125,18 +130,39 @@ def _write_run_json(out: Path, cfg: Config, timing: dict, geometry: Geometry, st
 
 
 def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
-        resume: bool = False, workers: int = 1) -> Results:
+        resume: bool = False, workers: int = 1, scheduler=None) -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
+
+    One realisation: ``run.realisations`` is for :func:`veriloc_rt.montecarlo.run_montecarlo`.
 
     :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
     :param resume: keep the rows already in ``out_dir`` and continue after them
     :param workers: processes computing the per-point chains (forked; the detectors, which
         carry state from point to point, run in this process); same results for any number
+    :param scheduler: compute the chains on a Dask cluster instead, in trajectory chunks: a
+        scheduler address (``tcp://host:8786``) or a connected ``distributed.Client``; same
+        results as the serial run. Not together with ``workers > 1``.
     """
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"Argument `workers` must be an integer >= 1, not {workers!r}")
-    from .report.results import ResultsWriter, read_rows, results_path, scenario_metrics
-    from .run_points import ScenarioRunner, _work, worker_pool
+    if scheduler is not None and workers > 1:
+        raise ValueError("Argument `workers` must be 1 with `scheduler` (the cluster's workers "
+                         f"compute the chains), not {workers!r}")
+    own_client = None
+    if isinstance(scheduler, str):  # connect before any heavy work: a bad address fails now
+        from .montecarlo import connect
+
+        own_client = scheduler = connect(scheduler)
+    try:
+        return _run(cfg, out_dir, progress, resume, workers, scheduler)
+    finally:
+        if own_client is not None:
+            own_client.close()
+
+
+def _run(cfg: Config, out_dir, progress: Progress | None, resume: bool, workers: int,
+         client) -> Results:
+    from .run_points import DaskChains, ForkPool, ScenarioRunner
 
     timing: dict = {}
     t0 = time.perf_counter()
@@ -159,8 +185,38 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
         _write_run_json(out, cfg, timing, geometry, "running")
 
     runner = ScenarioRunner(cfg, geometry, prop, keys)
-    pool = worker_pool(runner, workers) if workers > 1 else None
-    n = geometry.num_points
+    pool = None
+    try:
+        if client is not None:
+            pool = DaskChains(runner, client)
+            timing["scheduler"] = client.scheduler.address
+        elif workers > 1:
+            pool = ForkPool(runner, workers)
+        rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing)
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+        raise
+    if pool is not None:
+        pool.close()
+    timing.update({f"{k}_total": v for k, v in runner.timing.items()})
+    timing["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
+    timing["total"] = time.perf_counter() - t0
+    metrics["timing_s"] = timing
+    metrics["propagation_model"] = cfg.propagation.model
+    if out:
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+        _write_plots(out, cfg, geometry, metrics)
+        _write_run_json(out, cfg, timing, geometry, "complete")
+    return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
+
+
+def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
+                   progress: Progress | None, timing: dict) -> tuple[dict, dict]:
+    """Every scenario point by point: chains from ``pool`` (None: here), detectors here."""
+    from .report.results import ResultsWriter, read_rows, results_path, scenario_metrics
+
+    n = runner.geo.num_points
     rows: dict = {}
     metrics: dict = {"scenarios": {}}
     for scenario in cfg.run.scenarios:
@@ -177,8 +233,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
         writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
         prev = done[-1].index if done else None
         todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
-        ahead = (pool.imap(_work, [(scenario, i) for i in todo], chunksize=2)
-                 if pool is not None and todo else iter(()))
+        ahead = pool.imap(scenario, todo) if pool is not None and todo else iter(())
         todo_set = set(todo) if pool is not None else set()
         try:
             for i in range(len(done), n):
@@ -195,29 +250,13 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
                     writer.write(row)
                 if progress:
                     progress(scenario, i + 1, n)
-        except BaseException:
-            if pool is not None:
-                pool.terminate()
-            raise
         finally:
             if writer:
                 writer.close()
         rows[scenario] = done
         metrics["scenarios"][scenario] = scenario_metrics(done, scenario)
         timing[f"scenario_{scenario}"] = time.perf_counter() - t_s
-    if pool is not None:
-        pool.close()
-        pool.join()
-    timing.update({f"{k}_total": v for k, v in runner.timing.items()})
-    timing["workers"] = workers
-    timing["total"] = time.perf_counter() - t0
-    metrics["timing_s"] = timing
-    metrics["propagation_model"] = cfg.propagation.model
-    if out:
-        (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
-        _write_plots(out, cfg, geometry, metrics)
-        _write_run_json(out, cfg, timing, geometry, "complete")
-    return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
+    return rows, metrics
 
 
 def _write_plots(out: Path, cfg: Config, geometry: Geometry, metrics: dict) -> None:

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import threading
 import time
 from dataclasses import dataclass
 
@@ -234,29 +235,51 @@ class ScenarioRunner:
 _SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
 
 
-#: the runner a forked worker process uses (set by :func:`worker_pool` before forking)
+# -- executors: where the chains of the points ahead are computed ------------------------------
+# The detectors carry state from point to point, so they run in order in the engine's process;
+# the chains of the points ahead are independent (every draw comes from a named stream per
+# point) and go to an executor. ``imap(scenario, points)`` yields ``(i, results, timing)`` for
+# every point, in order, with ``results`` for :meth:`ScenarioRunner.store_chains`; the numbers
+# are the serial run's whatever the executor.
+
+#: the runner a forked worker process uses (set by :class:`ForkPool` before forking)
 _WORKER: ScenarioRunner | None = None
+
+
+def _chains_of(runner: ScenarioRunner, scenario: str, i: int) -> tuple[int, dict, dict]:
+    before = dict(runner.timing)
+    res = runner.compute_chains(scenario, i)
+    runner._benign.clear()  # the engine's runner keeps the cache; a worker only computes
+    return i, res, {k: runner.timing[k] - before[k] for k in before}
 
 
 def _work(task: tuple[str, int]) -> tuple[int, dict, dict]:
     scenario, i = task
-    before = dict(_WORKER.timing)
-    res = _WORKER.compute_chains(scenario, i)
-    _WORKER._benign.clear()  # the parent keeps the cache; a worker only computes
-    return i, res, {k: _WORKER.timing[k] - before[k] for k in before}
+    return _chains_of(_WORKER, scenario, i)
 
 
-def worker_pool(runner: ScenarioRunner, workers: int):
-    """A pool of ``workers`` forked processes computing :meth:`ScenarioRunner.compute_chains`.
+class ForkPool:
+    """``workers`` forked processes computing :meth:`ScenarioRunner.compute_chains`.
 
-    Forked, so the workers inherit the runner (keys included) without pickling it; results
-    are identical to the serial run (every draw comes from a named stream per point).
+    Forked, so the workers inherit the runner (keys included) without pickling it.
     """
-    import multiprocessing as mp
 
-    global _WORKER
-    _WORKER = runner
-    return mp.get_context("fork").Pool(workers, initializer=_ignore_sigint)
+    def __init__(self, runner: ScenarioRunner, workers: int):
+        import multiprocessing as mp
+
+        global _WORKER
+        _WORKER = runner
+        self.pool = mp.get_context("fork").Pool(workers, initializer=_ignore_sigint)
+
+    def imap(self, scenario: str, points: list[int]):
+        return self.pool.imap(_work, [(scenario, i) for i in points], chunksize=2)
+
+    def close(self) -> None:
+        self.pool.close()
+        self.pool.join()
+
+    def terminate(self) -> None:
+        self.pool.terminate()
 
 
 def _ignore_sigint() -> None:
@@ -264,3 +287,95 @@ def _ignore_sigint() -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+#: on a Dask worker: the runners of the runs it computes chunks for, by (token, thread id)
+_DASK_RUNNERS: dict[tuple[str, int], ScenarioRunner] = {}
+_DASK_LOCK = threading.Lock()
+
+
+def _dask_chunk(token: str, spec: tuple, scenario: str, points: list[int]) -> list[tuple]:
+    """A Dask task: the chains of ``points`` (a trajectory chunk).
+
+    The runner is built once per worker thread (a runner is not thread-safe) from
+    ``spec = (cfg, geometry, propagation)``; the keys are rebuilt from the config, as the
+    Ed25519 key objects do not pickle.
+    """
+    k = (token, threading.get_ident())
+    with _DASK_LOCK:
+        runner = _DASK_RUNNERS.get(k)
+    if runner is None:
+        from .engine import run_keys
+
+        cfg, geometry, prop = spec
+        runner = ScenarioRunner(cfg, geometry, prop, run_keys(cfg, len(geometry.bs_pos)))
+        with _DASK_LOCK:
+            _DASK_RUNNERS[k] = runner
+    return [_chains_of(runner, scenario, i) for i in points]
+
+
+def _dask_forget(token: str) -> int:
+    """On every worker when a run ends: drop its runners (and with them its propagation)."""
+    with _DASK_LOCK:
+        keys = [k for k in _DASK_RUNNERS if k[0] == token]
+        for k in keys:
+            del _DASK_RUNNERS[k]
+    return len(keys)
+
+
+class DaskChains:
+    """Trajectory chunks as tasks on a Dask cluster (a connected ``distributed.Client``).
+
+    The run's config, geometry and propagation go to every worker once; each chunk of
+    ``chunk`` points is one task; at most two chunks per worker thread (plus one) are in
+    flight, so results never pile up on the cluster ahead of the detectors.
+
+    :param chunk: points per task (None: about four tasks per worker thread, 1 to 16 points)
+    """
+
+    def __init__(self, runner: ScenarioRunner, client, chunk: int | None = None):
+        import uuid
+
+        self.client, self.chunk = client, chunk
+        self.token = f"veriloc-chains-{uuid.uuid4().hex}"
+        self.threads = max(1, sum(client.nthreads().values()))
+        [self.spec] = client.scatter([(runner.cfg, runner.geo, runner.prop)], broadcast=True,
+                                     hash=False)
+        self.inflight: set = set()
+        log.info("Dask: %d worker threads at %s", self.threads, client.scheduler.address)
+
+    def imap(self, scenario: str, points: list[int]):
+        from collections import deque
+
+        size = self.chunk or max(1, min(16, -(-len(points) // (4 * self.threads))))
+        chunks = [points[k:k + size] for k in range(0, len(points), size)]
+        pending: deque = deque()
+        nxt = 0
+        while pending or nxt < len(chunks):
+            while nxt < len(chunks) and len(pending) < 2 * self.threads + 1:
+                f = self.client.submit(_dask_chunk, self.token, self.spec, scenario,
+                                       chunks[nxt], key=f"{self.token}-{scenario}-{nxt}",
+                                       pure=False)
+                pending.append(f)
+                self.inflight.add(f)
+                nxt += 1
+            f = pending.popleft()
+            out = f.result()
+            self.inflight.discard(f)
+            yield from out
+
+    def close(self) -> None:
+        """Release the run's data on the cluster (the client stays connected)."""
+        for f in self.inflight:
+            f.cancel()
+        self.inflight.clear()
+        if self.spec is None:  # closed already
+            return
+        self.spec.release()
+        self.spec = None
+        try:
+            self.client.run(_dask_forget, self.token)
+        except Exception as exc:  # noqa: BLE001 - a worker gone by now has nothing to forget
+            log.warning("Dask: could not clear the workers' runners (%s)", exc)
+
+    terminate = close

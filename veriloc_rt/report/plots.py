@@ -403,8 +403,9 @@ def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = Non
             ax.set_ylim(0, 1.02)
             if ax.get_legend_handles_labels()[0]:
                 ax.legend(loc="lower right", fontsize=8)
-            if attr in ("position_error_m", "aoa_error_deg"):
+            if attr in ("position_error_m", "aoa_error_deg"):   # non-negative, wide range
                 ax.set_xscale("symlog", linthresh=1.0)
+                ax.set_xlim(left=0.0)
 
 
 def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | None = None) -> None:
