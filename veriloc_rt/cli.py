@@ -228,7 +228,8 @@ def cmd_bench(args) -> int:
     if args.points is not None and args.points < 2:
         raise InputError("--points", f"got {args.points}, expected an integer >= 2")
     t = time.perf_counter()
-    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar())
+    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar(),
+                    groups=tuple(args.only) if args.only else None)
     files = write_bench(res, args.out)
     print(markdown_table(res))
     print(f"{res.meta['num_points']} points, {len(res.settings)} settings in "
@@ -304,6 +305,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "minutes; for CI)")
     b.add_argument("--points", type=int, help="trajectory points evaluated (default 6 with "
                    "--quick, else 40)")
+    b.add_argument("--only", nargs="+", choices=("raytrace", "waveform"),
+                   help="sweep only these groups of knobs")
     b.set_defaults(func=cmd_bench)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
     c.add_argument("action", choices=("schema", "show"))

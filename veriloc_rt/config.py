@@ -253,7 +253,8 @@ class Config:
     receiver: ReceiverConfig = section(ReceiverConfig, "ToA, AoA, tags and uplink receivers")
     detectors: DetectorsConfig = section(DetectorsConfig, "the five per-point detectors")
     threats: ThreatsConfig = section(ThreatsConfig, "the adversary of each attack scenario")
-    run: RunConfig = section(RunConfig, "scenarios, attack window and outcome threshold")
+    run: RunConfig = section(RunConfig, "scenarios, attack window, outcome threshold, Monte Carlo "
+                             "realisations")
 
     def validate(self, path: str) -> None:
         if len(self.security.encrypted) != self.nr.num_bs:

@@ -54,7 +54,7 @@ def test_bench_files_and_numbers(bench_out):
         front = [r for r in grp if r["pareto"] == "True"]
         assert front and ref in front
     rt_ref = next(r for r in rows if r["group"] == "raytrace" and r["role"] == "reference")
-    assert float(rt_ref["first_path_dev_m_p95"]) == 0.0
+    assert float(rt_ref["first_path_dev_m_p95"]) == 0.0   # the ray-tracing front's accuracy axis
     meta = json.loads((bench_out / "bench.json").read_text())["meta"]
     assert meta["num_points"] == 4 and meta["quick"] is True
 

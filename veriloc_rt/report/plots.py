@@ -325,9 +325,9 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
     """Time against accuracy of a fidelity sweep (``veriloc-rt bench``), one panel per group.
 
     :param rows: bench rows (``veriloc_rt.bench``): group, label, role, time_s, time_unit,
-        pareto, position_dev_m_p95. x: seconds per link or point (log); y: p95 DL position
-        deviation from the reference (log, with the reference, 0 by definition, drawn at the
-        axis floor); the Pareto front joined by a line, the config's setting starred, the
+        pareto, first_path_dev_m_max (ray tracing) or position_dev_m_p95 (waveform). x: seconds
+        per link or point (log); y: that p95 deviation from the reference (log, with the
+        reference, 0 by definition, drawn at the axis floor); the Pareto front joined by a line, the config's setting starred, the
         noise floor dashed.
     """
     groups = [g for g in ("raytrace", "waveform") if any(r["group"] == g for r in rows)]
@@ -337,8 +337,8 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
                  squeeze=False) as (fig, axes):
         for ax, g in zip(axes[0], groups):
             grp = [r for r in rows if r["group"] == g]
-            dev = np.array([np.nan if r.get("position_dev_m_p95") is None else r["position_dev_m_p95"]
-                            for r in grp], dtype=float)
+            key = "first_path_dev_m_max" if g == "raytrace" else "position_dev_m_p95"
+            dev = np.array([np.nan if r.get(key) is None else r[key] for r in grp], dtype=float)
             t = np.array([r["time_s"] for r in grp], dtype=float)
             pos = dev[np.isfinite(dev) & (dev > 0)]
             floor = max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
@@ -368,7 +368,8 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
             ax.set_yscale("log")
             unit = grp[0]["time_unit"]
             ax.set_xlabel(f"seconds per {unit}")
-            ax.set_ylabel("p95 DL position deviation from the reference, m")
+            ax.set_ylabel("first-path deviation from the reference, worst link, m" if g == "raytrace"
+                          else "p95 DL position deviation from the reference, m")
             ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(loc="upper right", fontsize=8)
