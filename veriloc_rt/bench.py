@@ -390,33 +390,42 @@ def _fmt(v, nd=2) -> str:
     return str(v)
 
 
+def _pair(a: str, b: str, nd: int = 2):
+    return lambda s: f"{_fmt(s.metrics.get(a), nd)} / {_fmt(s.metrics.get(b), nd)}"
+
+
+def _one(key: str, nd: int = 2):
+    return lambda s: _fmt(s.metrics.get(key), nd)
+
+
+#: markdown columns per group: (header, cell of a Setting)
+_MD_COLUMNS = {
+    "raytrace": [("setting", lambda s: s.label), ("s/link", lambda s: _fmt(s.time_s, 4)),
+                 ("links with a path %", _one("links_with_path_pct", 1)),
+                 ("first path dev. p95 / worst m", _pair("first_path_dev_m_p95", "first_path_dev_m_max")),
+                 ("first-path AoA dev. p95 deg", _one("first_path_aoa_dev_deg_p95", 1)),
+                 ("position dev. p50 / p95 m", _pair("position_dev_m_p50", "position_dev_m_p95")),
+                 ("decisions agree %", _one("decision_agreement_pct", 1)),
+                 ("Pareto", lambda s: _fmt(s.pareto))],
+    "waveform": [("setting", lambda s: s.label), ("s/point", lambda s: _fmt(s.time_s, 3)),
+                 ("RSTD dev. p95 m", _one("rstd_dev_m_p95")),
+                 ("AoA dev. p95 deg", _one("aoa_dev_deg_p95", 1)),
+                 ("position dev. p50 / p95 m", _pair("position_dev_m_p50", "position_dev_m_p95")),
+                 ("decisions agree %", _one("decision_agreement_pct", 1)),
+                 ("Pareto", lambda s: _fmt(s.pareto))],
+}
+
+
 def markdown_table(res: BenchResult) -> str:
     lines = []
     for g in ("raytrace", "waveform"):
         grp = [s for s in res.settings if s.group == g]
         if not grp:
             continue
-        if g == "raytrace":
-            lines += ["| setting | s/link | links with a path % | first path dev. p95 / worst m | "
-                      "first-path AoA dev. p95 deg | position dev. p50 / p95 m | decisions agree % | Pareto |",
-                      "| --- | --- | --- | --- | --- | --- | --- | --- |"]
-            for s in grp:
-                m = s.metrics
-                lines.append(f"| {s.label} | {_fmt(s.time_s, 4)} | {_fmt(m.get('links_with_path_pct'), 1)} | "
-                             f"{_fmt(m.get('first_path_dev_m_p95'))} / {_fmt(m.get('first_path_dev_m_max'))} | "
-                             f"{_fmt(m.get('first_path_aoa_dev_deg_p95'), 1)} | "
-                             f"{_fmt(m.get('position_dev_m_p50'))} / {_fmt(m.get('position_dev_m_p95'))} | "
-                             f"{_fmt(m.get('decision_agreement_pct'), 1)} | {_fmt(s.pareto)} |")
-        else:
-            lines += ["| setting | s/point | RSTD dev. p95 m | AoA dev. p95 deg | "
-                      "position dev. p50 / p95 m | decisions agree % | Pareto |",
-                      "| --- | --- | --- | --- | --- | --- | --- |"]
-            for s in grp:
-                m = s.metrics
-                lines.append(f"| {s.label} | {_fmt(s.time_s, 3)} | {_fmt(m.get('rstd_dev_m_p95'))} | "
-                             f"{_fmt(m.get('aoa_dev_deg_p95'), 1)} | {_fmt(m.get('position_dev_m_p50'))} / "
-                             f"{_fmt(m.get('position_dev_m_p95'))} | {_fmt(m.get('decision_agreement_pct'), 1)} | "
-                             f"{_fmt(s.pareto)} |")
+        cols = _MD_COLUMNS[g]
+        lines += ["| " + " | ".join(h for h, _ in cols) + " |", "|" + " --- |" * len(cols)]
+        for s in grp:
+            lines.append("| " + " | ".join(f(s) for _, f in cols) + " |")
         lines.append("")
     return "\n".join(lines)
 
