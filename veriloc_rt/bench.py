@@ -40,7 +40,7 @@ import numpy as np
 
 from .config import Config, config_from_dict, config_to_dict
 from .constants import SPEED_OF_LIGHT
-from .diagnostics import BenignRun, benign_chain, wrap_deg
+from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 
 log = logging.getLogger(__name__)
 
@@ -192,11 +192,8 @@ def _first_path(cir, point_idx: np.ndarray):
 
 
 def _pct(x: np.ndarray) -> tuple[float | None, float | None]:
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    if x.size == 0:
-        return None, None
-    return float(np.percentile(x, 50)), float(np.percentile(x, 95))
+    q = finite_percentiles(x, (50, 95))
+    return q["p50"], q["p95"]
 
 
 def _chain_deviation(run: BenignRun, ref: BenignRun) -> dict:

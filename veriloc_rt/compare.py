@@ -30,7 +30,8 @@ from typing import Callable
 import numpy as np
 
 from .config import Config
-from .diagnostics import BenignRun, benign_chain
+from .diagnostics import BenignRun, benign_chain, finite_percentiles
+from .report.propagation_summary import rms_delay_spread
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +73,7 @@ def channel_statistics(cir) -> dict:
     pw = cir.path_power()[has]                                   # [L, paths]
     w = pw / pw.sum(-1, keepdims=True)
     tau = np.where(cir.valid[has], cir.delays[has], 0.0)
-    m = (w * tau).sum(-1)
-    ds = np.sqrt(np.maximum((w * (tau - m[:, None]) ** 2).sum(-1), 0.0))
+    ds = rms_delay_spread(cir)[has]
     asa = _circular_spread_deg(w, cir.aoa_az[has])
     zsa = _circular_spread_deg(w, cir.aoa_zen[has])
     los = cir.los[has]
@@ -87,10 +87,7 @@ def channel_statistics(cir) -> dict:
         k_db = 10 * np.log10(p_dir[ok] / np.maximum(rest[ok], 1e-300))
 
     def q(x):
-        x = np.asarray(x, float)
-        x = x[np.isfinite(x)]
-        return ({f"p{p}": float(np.percentile(x, p)) for p in (10, 50, 90)} if x.size
-                else {"p10": None, "p50": None, "p90": None})
+        return finite_percentiles(x, (10, 50, 90))
 
     out.update({"los_pct": 100.0 * float(los.mean()),
                 "paths_per_link_mean": float(cir.valid[has].sum(-1).mean()),
@@ -115,10 +112,8 @@ def uma_reference_statistics(fc_hz: float, d_2d_m: float = 200.0, h_ut_m: float 
 def _q(x) -> dict:
     x = np.asarray(x, float).ravel()
     x = x[np.isfinite(x)]
-    if x.size == 0:
-        return {"n": 0, "p50": None, "p95": None, "mean": None}
-    return {"n": int(x.size), "p50": float(np.percentile(x, 50)),
-            "p95": float(np.percentile(x, 95)), "mean": float(x.mean())}
+    return {"n": int(x.size), **finite_percentiles(x, (50, 95)),
+            "mean": float(x.mean()) if x.size else None}
 
 
 def error_statistics(b: BenignRun) -> dict:

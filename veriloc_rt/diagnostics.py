@@ -17,7 +17,7 @@ from .config import Config
 from .constants import SPEED_OF_LIGHT
 from .rng import stream
 
-__all__ = ["BenignRun", "benign_chain", "wrap_deg"]
+__all__ = ["BenignRun", "benign_chain", "finite_percentiles", "wrap_deg"]
 
 
 @dataclass
@@ -69,6 +69,13 @@ class BenignRun:
     def position_error_m(self) -> np.ndarray:
         """[P] float64, m, horizontal DL error (NaN without a fix)."""
         return np.linalg.norm(self.pos - self.truth, axis=1)
+
+
+def finite_percentiles(x, percentiles) -> dict:
+    """{"p<q>": percentile} over the finite values of ``x`` (None for every q when none)."""
+    x = np.asarray(x, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    return {f"p{q:g}": (float(np.percentile(x, q)) if x.size else None) for q in percentiles}
 
 
 def wrap_deg(a) -> np.ndarray:

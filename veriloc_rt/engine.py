@@ -54,16 +54,18 @@ class Results:
     metrics: dict = field(default_factory=dict)
 
 
+def package_version(name: str) -> str | None:
+    """Installed version of a distribution (None when it is not installed)."""
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return None
+
+
 def package_versions() -> dict:
     names = ("veriloc-rt", "sionna-rt", "mitsuba", "drjit", "numpy", "scipy", "trimesh",
              "cryptography", "ldpc")
-    out = {"python": platform.python_version()}
-    for n in names:
-        try:
-            out[n] = metadata.version(n)
-        except metadata.PackageNotFoundError:
-            out[n] = None
-    return out
+    return {"python": platform.python_version()} | {n: package_version(n) for n in names}
 
 
 def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | None = None,

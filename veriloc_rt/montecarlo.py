@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import Config, config_to_dict
-from .engine import Progress, package_versions
+from .engine import Progress, package_version, package_versions
 from .errors import InputError
 from .rng import stream
 from .run_points import DETECTORS, OUTCOMES
@@ -305,21 +305,12 @@ def _write_run_json(out: Path, cfg: Config, reals: list[dict], timing: dict, sta
             "realisations": [{"index": real["index"], "seed": real["config"].seed,
                               "topology_iteration": real["config"].topology.iteration,
                               "dir": real["dir"].name} for real in reals],
-            "versions": package_versions() | {"dask": _version("dask"),
-                                              "distributed": _version("distributed")},
+            "versions": package_versions() | {"dask": package_version("dask"),
+                                              "distributed": package_version("distributed")},
             "timing_s": timing}
     tmp = out / "run.json.tmp"
     tmp.write_text(json.dumps(info, indent=2))
     tmp.replace(out / "run.json")
-
-
-def _version(name: str) -> str | None:
-    from importlib import metadata
-
-    try:
-        return metadata.version(name)
-    except metadata.PackageNotFoundError:
-        return None
 
 
 def _f(v) -> str:
