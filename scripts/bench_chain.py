@@ -59,10 +59,12 @@ def synthetic_uma(num_points: int, mode: str, seed: int):
 
 
 def make_chain(domain: str, rate: float | None, bs_ids, noise: bool = True, decimation: int = 1,
-               cls=PositioningChain, receiver: ReceiverConfig | None = None) -> PositioningChain:
+               cls=PositioningChain, receiver: ReceiverConfig | None = None,
+               front_end: str = "correlator") -> PositioningChain:
     keys = simulated_keys(sorted(set(int(b) for b in bs_ids)), np.random.default_rng(7))
     return cls(NRConfig(sample_rate_hz=rate), SecurityConfig(),
-                            ChannelConfig(domain=domain, noise=noise, time_decimation=decimation),
+                            ChannelConfig(domain=domain, noise=noise, time_decimation=decimation,
+                                          time_front_end=front_end),
                             receiver or ReceiverConfig(), ArrayConfig(), FC, keys)
 
 
@@ -143,19 +145,21 @@ def run_pair(fast: GivenNoiseChain, ref: RecordingChain, cir, points, seed: int 
     return dl_f, dl_r, t_f / len(points), t_r / len(points)
 
 
-def compare(name: str, cir, truth: np.ndarray, ref_points: int, decimation: int = 1) -> None:
+def compare(name: str, cir, truth: np.ndarray, ref_points: int, decimation: int = 1,
+            front_ends=("correlator",), noises=(False, True)) -> None:
     """Default vs reference on the same CIRs and, with noise, the same noise realisation (the
     reference draws white noise at 122.88 MHz; the default receives its projection on the PRS
     grid, i.e. exactly the noise the reference's own FFT windows see on those REs)."""
     ids = np.unique(cir.tx_index[cir.tx_index >= 0])
     pts = np.arange(min(ref_points, cir.num_points))
-    for noise in (False, True):
+    for front_end, noise in ((f, n) for f in front_ends for n in noises):
         fast = make_chain("frequency", None, ids, noise, cls=GivenNoiseChain)
-        ref = make_chain("time", 122.88e6, ids, noise, decimation, cls=RecordingChain)
+        ref = make_chain("time", 122.88e6, ids, noise, decimation, cls=RecordingChain,
+                         front_end=front_end)
         dl_f, dl_r, t_f, t_r = run_pair(fast, ref, cir, pts)
         dev = np.linalg.norm(dl_f[:, :2] - dl_r[:, :2], axis=1)
         both = np.isfinite(dl_f[:, 0]) == np.isfinite(dl_r[:, 0])
-        tag = "same noise" if noise else "noiseless"
+        tag = ("same noise" if noise else "noiseless") + f", reference front end {front_end}"
         print(f"[{name}, {tag}] seconds per point: default (frequency, "
               f"{fast.ofdm.sample_rate_hz / 1e6:.2f} MHz) {t_f:.3f} s, reference (time, 122.88 MHz, "
               f"paths applied at 122.88/{ref.decimation} MHz) "
@@ -197,19 +201,25 @@ def main() -> None:
                     choices=["pathloss_only", "fast_fading", "rt"],
                     help="channels of the default-vs-reference comparison")
     ap.add_argument("--skip", nargs="*", default=[], choices=["compare", "uma", "rt"])
+    ap.add_argument("--front-end", nargs="*", default=["correlator"], choices=["correlator", "ofdm"],
+                    help="the reference's time-domain receiver: 'correlator' (per-symbol "
+                         "correlation, CP included) and/or 'ofdm' (CP removal + FFT, the default's "
+                         "own receiver: isolates the channel's fidelity)")
+    ap.add_argument("--noise", nargs="*", default=["none", "same"], choices=["none", "same"])
     args = ap.parse_args()
+    opts = {"front_ends": tuple(args.front_end), "noises": tuple(n == "same" for n in args.noise)}
     if "compare" not in args.skip:
         if "pathloss_only" in args.compare:
             cir, ue = synthetic_uma(max(args.ref_points, 2), "pathloss_only", SEED)
-            compare("UMa pathloss_only", cir, ue, args.ref_points)
+            compare("UMa pathloss_only", cir, ue, args.ref_points, **opts)
         if "fast_fading" in args.compare:
             # ~400 paths per link: the exact reference costs ~280 s per point; decimated by 8 it
             # is exact inside the band (tests/unit/test_channel.py) and ~10x cheaper
             cir, ue = synthetic_uma(max(args.ref_points, 2), "fast_fading", SEED)
-            compare("UMa fast_fading", cir, ue, args.ref_points, decimation=8)
+            compare("UMa fast_fading", cir, ue, args.ref_points, decimation=8, **opts)
         if args.rt_cache and "rt" in args.compare:
             cir, ue = load_rt(args.rt_cache, args.rt_scene, args.rt_points)
-            compare("ray-traced", cir, ue, args.ref_points)
+            compare("ray-traced", cir, ue, args.ref_points, **opts)
     if "uma" not in args.skip:
         for mode in ("pathloss_only", "fast_fading"):
             cir, ue = synthetic_uma(args.uma_points, mode, SEED)

@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from veriloc_rt.config import RayTracingConfig
+
 SWEEP = [("forward", 100_000), ("forward", 300_000), ("forward", 1_000_000),
          ("reciprocal", 3_000), ("reciprocal", 10_000), ("reciprocal", 30_000),
          ("reciprocal", 100_000), ("reciprocal", 300_000)]
@@ -67,7 +69,8 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path,
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=300)
-    ap.add_argument("--depth", type=int, default=3, help="max_depth (default: the config's 3)")
+    ap.add_argument("--depth", type=int, default=RayTracingConfig().max_depth,
+                    help="max_depth (default: the config's)")
     ap.add_argument("--only", help="settings, comma separated, e.g. reciprocal:10000,forward:1e6")
     ap.add_argument("--keep", help="folder to keep each setting's per-link results (.npz)")
     ap.add_argument("--candidates", type=int, default=2000,

@@ -15,6 +15,7 @@ from .errors import bad_value
 
 #: Channel application domains
 DOMAINS = ("frequency", "time")
+TIME_FRONT_ENDS = ("correlator", "ofdm")
 #: ToA rules: the paper's strongest correlation peak, or the first path above a threshold
 TOA_METHODS = ("first_path", "strongest")
 
@@ -28,6 +29,12 @@ class ChannelConfig:
                         "spread fits in the cyclic prefix and Doppler << SCS; fast); 'time': "
                         "IQ at the sample rate, exact fractional delays and Doppler (reference)",
                         choices=DOMAINS)
+    time_front_end: str = param("correlator", "time domain only: 'correlator': per-symbol linear "
+                                "correlation of the IQ with the replica waveform, cyclic prefix "
+                                "included (a receiver that uses the CP's energy too); 'ofdm': CP "
+                                "removal and FFT, then the frequency path's per-RE correlation "
+                                "(the same receiver as the fast path, so a comparison isolates "
+                                "the channel's fidelity)", choices=TIME_FRONT_ENDS)
     time_decimation: int = param(1, "time domain only: apply the paths at sample_rate / D after an "
                                  "ideal low-pass, then interpolate back (exact inside the band, "
                                  "drops the CP-OFDM out-of-band leakage; D times cheaper per path, "

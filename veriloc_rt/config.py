@@ -121,7 +121,9 @@ class ArrayConfig:
 class RayTracingConfig:
     """Sionna RT fidelity knobs (every one trades time for accuracy)."""
 
-    max_depth: int = param(3, "maximum number of interactions per path", lo=0, hi=10)
+    max_depth: int = param(4, "maximum number of interactions per path (4: the cheapest depth "
+                           "that kept every serving link of the default canyon, `veriloc-rt "
+                           "bench`)", lo=0, hi=10)
     direction: str = param("reciprocal", "'reciprocal': launch rays from the street-level end "
                            "(UE, adversary) and use reciprocity, so the nearby roof edges that "
                            "carry canyon links are densely sampled; 'forward': launch from the "

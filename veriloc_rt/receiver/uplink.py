@@ -98,11 +98,10 @@ class UplinkPositioner:
         snr = np.full(n_bs, -np.inf)
         for j, link in enumerate(uplinks):
             y = self.receive(link, t0, rng)
-            if self.channel.domain == "frequency":
-                grid = y
-                cs = frequency_cross_spectra(y, self.grid, self.ofdm, self.slots)
+            grid = y if self.channel.domain == "frequency" else self.ofdm.demodulate(y, self.slots)
+            if self.channel.domain == "frequency" or self.channel.time_front_end == "ofdm":
+                cs = frequency_cross_spectra(grid, self.grid, self.ofdm, self.slots)
             else:
-                grid = self.ofdm.demodulate(y, self.slots)
                 cs = time_cross_spectra(y, self.grid, self.ofdm, self.slots, self.channel.timing_guard_s,
                                         self.toa.cfg.search_window_s)
             nv = noise_variance(grid, busy)
