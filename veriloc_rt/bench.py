@@ -16,10 +16,14 @@ level of every knob of its group at once:
 
 Decisions per point (benign): fix obtained, HMAC tags of every BS valid, ABSA (AoA against the
 true geometry) and DL-UL handshake; the agreement is the share of (point, decision) pairs equal
-to the reference's. Every chain run uses the run's noise streams (``stream(seed, "noise", 0,
-i)``, as ``veriloc-rt run``), so two settings see the same noise draws; a *noise floor* row (the
-config's setting with other noise draws) shows how much deviation noise alone produces: only
-deviations above it are the setting's.
+to the reference's. Two settings see the same noise: the ray-tracing group's chains use the
+run's noise streams (``stream(seed, "noise", 0, i)``, as ``veriloc-rt run``); the waveform
+group's, whose settings differ in sample rate, domain and slots, draw the downlink noise as a
+per-RE grid (:func:`~veriloc_rt.diagnostics.benign_chain` with ``shared_noise``), the same on
+every RE whatever the setting, and their time-domain settings receive with the OFDM front end
+(``channel.time_front_end`` 'ofdm', the fast path's own receiver), so a deviation is the
+setting's, not the noise's. A *noise floor* row (the config's setting with other noise draws)
+shows how much deviation noise alone produces.
 
 The Pareto front (time against :data:`PARETO_METRIC`: the worst link's first-path deviation for ray tracing,
 p95 DL position deviation for the waveform) is marked per group; the chart, a CSV,
@@ -164,6 +168,7 @@ def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | N
             # the time domain applies the paths at f_s / 8 after an ideal low-pass: exact inside
             # the band (tests/unit/test_channel.py) and ~8x cheaper with hundreds of paths
             ref_patch["channel.time_decimation"] = TIME_DECIMATION
+            ref_patch["channel.time_front_end"] = "ofdm"
         out.append(Setting(g, "", None, {}, role="config"))
         out.append(Setting(g, "", None, ref_patch, role="reference"))
         for k in knobs:
@@ -174,6 +179,7 @@ def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | N
                 patch = {k.path: v}
                 if k.name == "domain" and v == "time":
                     patch["channel.time_decimation"] = TIME_DECIMATION
+                    patch["channel.time_front_end"] = "ofdm"
                 out.append(Setting(g, k.name, v, patch))
         if g == "waveform":
             out.append(Setting(g, "noise seed", "other", {}, role="noise floor"))
@@ -321,8 +327,8 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     wf = [s for s in settings if s.group == "waveform"]
     for s in sorted(wf, key=lambda s: s.role != "reference"):
         c = _patched(cfg, s.patch)
-        r = benign_chain(c, geo0, bs_ue0, keys, idx,
-                       noise="noise-floor" if s.role == "noise floor" else "noise")
+        r = benign_chain(c, geo0, bs_ue0, keys, idx, shared_noise=True,
+                         noise="noise-floor" if s.role == "noise floor" else "noise")
         s.time_s, s.time_unit = r.seconds_per_point, "point"
         runs[id(s)] = r
         tick(s.label)

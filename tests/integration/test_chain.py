@@ -164,3 +164,35 @@ def test_time_domain_with_ofdm_front_end_reproduces_the_frequency_path(rate):
     np.testing.assert_array_less(np.abs(ref.uplink.toa_s - fast.uplink.toa_s) * fs, FRONT_END_SAMPLES)
     assert np.linalg.norm(ref.position.position - fast.position.position) < 0.01
     assert ref.tags_valid.all() and fast.tags_valid.all()
+
+
+@pytest.mark.parametrize("rate", [15.36e6, 122.88e6])
+def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
+    """``benign_chain(shared_noise=True)``'s chain: the same per-RE noise grid, added to the
+    grid (frequency) or OFDM-modulated into the IQ (time, OFDM front end), gives the same
+    estimates up to the channel's own time/frequency difference (FRONT_END_SAMPLES), here at
+    0 dB per RE and antenna where independent noise would move the ToAs by ~0.05 sample."""
+    from veriloc_rt.diagnostics import _shared_noise_chain
+
+    cls = _shared_noise_chain()
+    ue = np.array([37.0, -21.0, 1.5])
+    nv = thermal_noise_variance(rate, ChannelConfig().ue_noise_figure_db)
+    probe = make_chain("frequency", rate)
+    g2 = nv * probe.ofdm.num_subcarriers / (float(dbm_to_watt(24.0)) * probe.ofdm.fft_size)
+    cir = exact_cir(ue, amp=np.sqrt(g2), doppler=(80.0, -40.0, 10.0))
+    out = {}
+    for domain in ("frequency", "time"):
+        chain = cls(NRConfig(sample_rate_hz=rate, slots_per_frame=4), SecurityConfig(tag_scheme="none"),
+                    ChannelConfig(domain=domain, time_front_end="ofdm"), ReceiverConfig(),
+                    ArrayConfig(), FC, simulated_keys((0, 1, 2), np.random.default_rng(0)))
+        chain.dl_rng = np.random.default_rng(11)
+        out[domain] = chain(cir, 0, np.random.default_rng(12))
+        fs = chain.ofdm.sample_rate_hz
+    f, t = out["frequency"], out["time"]
+    assert f.detected.all() and t.detected.all()
+    np.testing.assert_array_less(np.abs(f.toa_s - t.toa_s) * fs, FRONT_END_SAMPLES)
+    # peak over floor: the floors are the same noise; the peaks differ by the time domain's
+    # inter-symbol and inter-carrier leakage (measured <= 0.03 dB at 80 Hz Doppler)
+    np.testing.assert_allclose(f.peak_snr_db, t.peak_snr_db, atol=0.1)
+    # the uplink draws from the point's own generator: the same in both
+    np.testing.assert_array_less(np.abs(f.uplink.toa_s - t.uplink.toa_s) * fs, FRONT_END_SAMPLES)

@@ -43,7 +43,8 @@ def test_sweep_settings_raytrace_quick():
     assert sum(x.role == "noise floor" for x in s) == 1
     # time-domain settings apply the paths decimated (exact in band, tests/unit/test_channel.py)
     td = next(x for x in s if x.knob == "domain")
-    assert td.patch == {"channel.domain": "time", "channel.time_decimation": 8}
+    assert td.patch == {"channel.domain": "time", "channel.time_decimation": 8,
+                        "channel.time_front_end": "ofdm"}
 
 
 def test_sweep_settings_uma_has_no_raytrace_group():

@@ -77,6 +77,11 @@ class UplinkPositioner:
             n = self.waveform.shape[-1] + int(np.ceil(self.receiver.search_window_s * self.ofdm.sample_rate_hz)) + 64
             dec = max(1, min(self.channel.time_decimation, self.ofdm.fft_size // self.nr.min_fft_size))
             y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n, dec)
+        return self._add_noise(y, rng)
+
+    def _add_noise(self, y: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The received signal plus the BS's thermal noise (the one place uplink noise enters;
+        a benchmark can override it)."""
         return add_noise(y, self.noise_var, rng)
 
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
