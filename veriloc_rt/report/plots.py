@@ -327,8 +327,9 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
     :param rows: bench rows (``veriloc_rt.bench``): group, label, role, time_s, time_unit,
         pareto, first_path_dev_m_max (ray tracing) or position_dev_m_p95 (waveform). x: seconds
         per link or point (log); y: that p95 deviation from the reference (log, with the
-        reference, 0 by definition, drawn at the axis floor); the Pareto front joined by a line, the config's setting starred, the
-        noise floor dashed.
+        reference, 0 by definition, drawn at the axis floor; an infinite deviation, a link lost
+        or gained, on a dotted band above the rest); the Pareto front joined by a line, the
+        config's setting starred, the noise floor dashed.
     """
     groups = [g for g in ("raytrace", "waveform") if any(r["group"] == g for r in rows)]
     if not groups:
@@ -342,10 +343,21 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
             t = np.array([r["time_s"] for r in grp], dtype=float)
             pos = dev[np.isfinite(dev) & (dev > 0)]
             floor = max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
-            y = np.where(np.isfinite(dev), np.maximum(dev, floor), np.nan)
+            # an infinite deviation (a link lost or gained) is drawn on a band above the rest
+            top = float(pos.max()) * 4 if pos.size else 1.0
+            y = np.where(np.isfinite(dev), np.maximum(dev, floor), np.where(np.isinf(dev), top, np.nan))
+            if np.isinf(dev).any():
+                ax.axhline(top, color="tab:red", ls=":", lw=1, label="links lost or gained (infinite)")
             placed: list[tuple[float, float]] = []
-            for r, xi, yi in zip(grp, t, y):
+            for r, xi, yi, di in zip(grp, t, y, dev):
                 if r["role"] == "noise floor" or not np.isfinite(yi):
+                    continue
+                if np.isinf(di):   # the band: labels slanted upwards, side by side
+                    ax.scatter([xi], [yi], s=140 if r["role"] == "config" else 36,
+                               marker="*" if r["role"] == "config" else "^",
+                               color="tab:red" if r["role"] == "config" else "0.6", zorder=3)
+                    ax.annotate(r["label"], (xi, yi), fontsize=6.5, xytext=(0, 6), rotation=60,
+                                textcoords="offset points")
                     continue
                 # stack the labels of nearby points (log axes) instead of overprinting them
                 near = sum(abs(np.log10(xi) - px) < 0.35 and abs(np.log10(yi) - py) < 0.08
@@ -355,9 +367,11 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
                 ax.scatter([xi], [yi], s=140 if star else 36, marker="*" if star else "o",
                            color="tab:red" if star else ("tab:blue" if r["pareto"] else "0.6"),
                            zorder=3)
-                ax.annotate(r["label"], (xi, yi), fontsize=7, xytext=(4, 3 + 9 * near),
+                text = "reference (0, drawn at the floor)" if r["role"] == "reference" else r["label"]
+                ax.annotate(text, (xi, yi), fontsize=7, xytext=(4, 3 + 9 * near),
                             textcoords="offset points")
-            front = [(xi, yi) for r, xi, yi in zip(grp, t, y) if r["pareto"] and np.isfinite(yi)]
+            front = [(xi, yi) for r, xi, yi, di in zip(grp, t, y, dev)
+                     if r["pareto"] and np.isfinite(di)]
             if front:
                 fx, fy = zip(*sorted(front))
                 ax.step(fx, fy, where="post", color="tab:blue", lw=1.2, label="Pareto front")
@@ -366,13 +380,15 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
                 ax.axhline(nf[0], color="0.3", ls="--", lw=1, label="noise floor (other noise draws)")
             ax.set_xscale("log")
             ax.set_yscale("log")
+            if np.isinf(dev).any():
+                ax.set_ylim(top=top * 12)
             unit = grp[0]["time_unit"]
             ax.set_xlabel(f"seconds per {unit}")
             ax.set_ylabel("first-path deviation from the reference, worst link, m" if g == "raytrace"
                           else "p95 DL position deviation from the reference, m")
             ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(loc="upper right", fontsize=8)
+            ax.legend(loc="lower left", fontsize=8)
 
 
 def _cdf(ax, x, label: str, **kw) -> None:
