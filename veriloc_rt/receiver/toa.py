@@ -158,17 +158,22 @@ class ToAEstimator:
         out *= n_up
         return out
 
-    def _power_map(self, s: np.ndarray, nus: np.ndarray, tc: np.ndarray, idx: np.ndarray,
-                   lags: np.ndarray, n_up: int) -> np.ndarray:
-        """Delay-Doppler power map sum_a |sum_b e^{-j2pi nu t_b} c_ab(tau)|^2: [V, num_lags].
+    @staticmethod
+    def _doppler_spectra(s: np.ndarray, nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
+        """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
-        Single precision: the map only ranks hypotheses and cells against thresholds (relative
-        error ~1e-7, far below the noise); the ToA itself is refined on exact double-precision
-        evaluations. Measured 2x faster than double on the chain (scripts/bench_chain.py).
+        Single precision: the maps built from it only rank hypotheses and cells against
+        thresholds (relative error ~1e-7, far below the noise); the ToA itself is refined on
+        exact double-precision evaluations. Measured 2x faster than double on the chain
+        (scripts/bench_chain.py). A per-bin window w_k commutes with the sum over blocks, so
+        one product serves the windowed map too.
         """
         a_, b_, k_ = s.shape
         rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)   # [V, B]
-        g = (rot @ s.astype(np.complex64).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
+        return (rot @ s.astype(np.complex64).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
+
+    def _power_map(self, g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int) -> np.ndarray:
+        """Delay-Doppler power map sum_a |C_a(tau, nu)|^2 from :meth:`_doppler_spectra`: [V, num_lags]."""
         p = self._profiles(g, idx, lags, n_up)
         return np.sum(p.real ** 2 + p.imag ** 2, axis=1, dtype=np.float64)
 
@@ -213,7 +218,8 @@ class ToAEstimator:
         if cfg.doppler_max_hz > 0:
             nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
             idx1, lags1, n1 = self._grid(cs, 1)
-            metric = self._power_map(s, nus, tc, idx1, lags1, n1).max(axis=-1)
+            g_nu = self._doppler_spectra(s, nus, tc)                                    # [V, A, K]
+            metric = self._power_map(g_nu, idx1, lags1, n1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
@@ -275,7 +281,7 @@ class ToAEstimator:
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
                 idx1, lags1, n1 = idx, lags, n_up
-                dmap = self._power_map(s * win, nus, tc, idx1, lags1, n1)               # [V, L1]
+                dmap = self._power_map(g_nu * win.astype(np.float32), idx1, lags1, n1)  # [V, L1]
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
