@@ -54,7 +54,12 @@ def test_bench_files_and_numbers(bench_out):
         front = [r for r in grp if r["pareto"] == "True"]
         assert front and ref in front
     rt_ref = next(r for r in rows if r["group"] == "raytrace" and r["role"] == "reference")
-    assert float(rt_ref["first_path_dev_m_p95"]) == 0.0   # the ray-tracing front's accuracy axis
+    assert float(rt_ref["first_path_dev_m_p95"]) == 0.0
+    assert float(rt_ref["first_path_off_pct"]) == 0.0     # the ray-tracing front's accuracy axis
+    for r in rows:
+        if r["group"] == "raytrace":   # a lost or gained path counts as off: at least the coverage gap
+            gap = abs(float(r["links_with_path_pct"]) - float(rt_ref["links_with_path_pct"]))
+            assert float(r["first_path_off_pct"]) >= gap - 1e-9
     meta = json.loads((bench_out / "bench.json").read_text())["meta"]
     assert meta["num_points"] == 4 and meta["quick"] is True
 
