@@ -71,7 +71,7 @@ KNOBS = (
          (10_000, 20_000, 50_000, 100_000, 300_000)),
     Knob("raytrace", "max_depth", "propagation.raytrace.max_depth", (1, 2, 3, 4, 5)),
     Knob("raytrace", "diffraction", "propagation.raytrace.diffraction", (False, True)),
-    Knob("raytrace", "margin_m", "scene.margin_m", (20.0, 60.0, 150.0)),
+    Knob("raytrace", "margin_m", "scene.margin_m", (20.0, 60.0, 150.0, 300.0)),
     Knob("waveform", "sample_rate_hz", "nr.sample_rate_hz", (None, 30.72e6, 61.44e6, 122.88e6)),
     Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
     Knob("waveform", "domain", "channel.domain", ("frequency", "time")),
