@@ -325,7 +325,7 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
     """Time against accuracy of a fidelity sweep (``veriloc-rt bench``), one panel per group.
 
     :param rows: bench rows (``veriloc_rt.bench``): group, label, role, time_s, time_unit,
-        pareto, first_path_off_pct (ray tracing: linear y) or position_dev_m_p95 (waveform). x:
+        pareto, first_path_off_pct (ray tracing) or position_dev_m_p95 (waveform). x:
         seconds per link or point (log); y: that deviation from the reference (log, with the
         reference, 0 by definition, drawn at the axis floor; an infinite deviation, a link lost
         or gained, on a dotted band above the rest); the Pareto front joined by a line, the
@@ -339,11 +339,10 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
         for ax, g in zip(axes[0], groups):
             grp = [r for r in rows if r["group"] == g]
             key = "first_path_off_pct" if g == "raytrace" else "position_dev_m_p95"
-            share = g == "raytrace"   # a share in %: linear axis, 0 drawn as 0
             dev = np.array([np.nan if r.get(key) is None else r[key] for r in grp], dtype=float)
             t = np.array([r["time_s"] for r in grp], dtype=float)
             pos = dev[np.isfinite(dev) & (dev > 0)]
-            floor = 0.0 if share else max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
+            floor = max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
             # an infinite deviation (a link lost or gained) is drawn on a band above the rest
             top = float(pos.max()) * 4 if pos.size else 1.0
             y = np.where(np.isfinite(dev), np.maximum(dev, floor), np.where(np.isinf(dev), top, np.nan))
@@ -361,15 +360,14 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
                                 textcoords="offset points")
                     continue
                 # stack the labels of nearby points (log axes) instead of overprinting them
-                yy = yi / 3.0 if share else np.log10(yi)   # ~ the same height on either axis
-                near = sum(abs(np.log10(xi) - px) < 0.35 and abs(yy - py) < 0.08 for px, py in placed)
-                placed.append((float(np.log10(xi)), float(yy)))
+                near = sum(abs(np.log10(xi) - px) < 0.35 and abs(np.log10(yi) - py) < 0.08
+                           for px, py in placed)
+                placed.append((float(np.log10(xi)), float(np.log10(yi))))
                 star = r["role"] == "config"
                 ax.scatter([xi], [yi], s=140 if star else 36, marker="*" if star else "o",
                            color="tab:red" if star else ("tab:blue" if r["pareto"] else "0.6"),
                            zorder=3)
-                text = ("reference (0, drawn at the floor)" if r["role"] == "reference" and not share
-                        else r["label"])
+                text = "reference (0, drawn at the floor)" if r["role"] == "reference" else r["label"]
                 ax.annotate(text, (xi, yi), fontsize=7, xytext=(4, 3 + 9 * near),
                             textcoords="offset points")
             front = [(xi, yi) for r, xi, yi, di in zip(grp, t, y, dev)
@@ -381,12 +379,12 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
             if nf:
                 ax.axhline(nf[0], color="0.3", ls="--", lw=1, label="noise floor (other noise draws)")
             ax.set_xscale("log")
-            ax.set_yscale("linear" if share else "log")
+            ax.set_yscale("log")
             if np.isinf(dev).any():
                 ax.set_ylim(top=top * 12)
             unit = grp[0]["time_unit"]
             ax.set_xlabel(f"seconds per {unit}")
-            ax.set_ylabel("links whose first path is lost or > 1 m off the reference, %" if share
+            ax.set_ylabel("links whose first path is lost or > 1 m off the reference, %" if g == "raytrace"
                           else "p95 DL position deviation from the reference, m")
             ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
             ax.grid(True, which="both", alpha=0.3)
