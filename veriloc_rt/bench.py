@@ -93,6 +93,9 @@ FIRST_PATH_TOL_M = 1.0
 #: time-domain settings apply the paths at sample_rate / TIME_DECIMATION (clipped by the chain to
 #: the smallest FFT that holds the band)
 TIME_DECIMATION = 8
+#: what every time-domain setting adds: decimated path application, and the fast path's own OFDM
+#: front end (the shared per-RE noise reaches only the FFT windows)
+TIME_DOMAIN_PATCH = {"channel.time_decimation": TIME_DECIMATION, "channel.time_front_end": "ofdm"}
 QUICK_LEVELS = {
     "rays_per_source": (10_000, 50_000, 200_000),
     "max_depth": (3, 4),
@@ -173,8 +176,7 @@ def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | N
         if g == "waveform":
             # the time domain applies the paths at f_s / 8 after an ideal low-pass: exact inside
             # the band (tests/unit/test_channel.py) and ~8x cheaper with hundreds of paths
-            ref_patch["channel.time_decimation"] = TIME_DECIMATION
-            ref_patch["channel.time_front_end"] = "ofdm"
+            ref_patch.update(TIME_DOMAIN_PATCH)
         out.append(Setting(g, "", None, {}, role="config"))
         out.append(Setting(g, "", None, ref_patch, role="reference"))
         for k in knobs:
@@ -184,8 +186,7 @@ def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | N
                     continue  # the config's own setting is the 'config' row
                 patch = {k.path: v}
                 if k.name == "domain" and v == "time":
-                    patch["channel.time_decimation"] = TIME_DECIMATION
-                    patch["channel.time_front_end"] = "ofdm"
+                    patch.update(TIME_DOMAIN_PATCH)
                 out.append(Setting(g, k.name, v, patch))
         if g == "waveform":
             out.append(Setting(g, "noise seed", "other", {}, role="noise floor"))

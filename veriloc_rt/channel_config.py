@@ -55,6 +55,12 @@ class ChannelConfig:
     timing_guard_s: float = param(0.25e-6, "the receiver's timing reference t0 sits this long "
                                   "before the earliest serving-link arrival", lo=0.0, hi=4e-6)
 
+    @property
+    def per_re_receiver(self) -> bool:
+        """The receiver correlates per resource element (frequency domain, or the time domain
+        with the OFDM front end) rather than the IQ buffer."""
+        return self.domain == "frequency" or self.time_front_end == "ofdm"
+
 
 @dataclass(frozen=True)
 class ReceiverConfig:

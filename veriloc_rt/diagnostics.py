@@ -15,6 +15,7 @@ import numpy as np
 
 from .config import Config
 from .constants import SPEED_OF_LIGHT
+from .nr.ofdm import SYMBOLS_PER_SLOT
 from .rng import stream
 
 __all__ = ["BenignRun", "benign_chain", "finite_percentiles", "wrap_deg"]
@@ -88,7 +89,7 @@ def _grid_noise(x: np.ndarray, variance: float, rng: np.random.Generator, ofdm, 
     how many follow): added to a grid [A, S, 14, K], or OFDM-modulated (orthonormal: each FFT
     window gets the grid back exactly; CP and tail get no noise) into IQ [A, N]."""
     a = x.shape[0]
-    u = rng.standard_normal((len(slots), a, 14, ofdm.num_subcarriers, 2)).view(np.complex128)[..., 0]
+    u = rng.standard_normal((len(slots), a, SYMBOLS_PER_SLOT, ofdm.num_subcarriers, 2)).view(np.complex128)[..., 0]
     g = np.moveaxis(u, 0, 1) * np.sqrt(variance / 2.0)                 # [A, S, 14, K]
     if x.ndim == 4:
         return x + g

@@ -259,7 +259,7 @@ class PositioningChain:
         dof = noise_dof(grid, self.busy_symbols)
         ests = []
         for b in range(self.num_bs):
-            if iq is None or self.channel.time_front_end == "ofdm":
+            if self.channel.per_re_receiver:
                 cs = frequency_cross_spectra(grid, sig["replicas"][b], self.ofdm, self.slots)
             else:
                 cs = time_cross_spectra(iq, sig["replicas"][b], self.ofdm, self.slots,

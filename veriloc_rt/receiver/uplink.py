@@ -104,7 +104,7 @@ class UplinkPositioner:
         for j, link in enumerate(uplinks):
             y = self.receive(link, t0, rng)
             grid = y if self.channel.domain == "frequency" else self.ofdm.demodulate(y, self.slots)
-            if self.channel.domain == "frequency" or self.channel.time_front_end == "ofdm":
+            if self.channel.per_re_receiver:
                 cs = frequency_cross_spectra(grid, self.grid, self.ofdm, self.slots)
             else:
                 cs = time_cross_spectra(y, self.grid, self.ofdm, self.slots, self.channel.timing_guard_s,
