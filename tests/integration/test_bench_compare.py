@@ -50,6 +50,7 @@ def test_bench_files_and_numbers(bench_out):
         assert any(r["role"] == "config" for r in grp)
         # the reference against itself: no deviation at all (same CIRs, same noise draws)
         assert float(ref["position_dev_m_p95"]) == 0.0
+        assert float(ref["position_off_pct"]) == 0.0     # the waveform front's accuracy axis
         assert float(ref["decision_agreement_pct"]) == 100.0
         front = [r for r in grp if r["pareto"] == "True"]
         assert front and ref in front

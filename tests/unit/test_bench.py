@@ -66,3 +66,45 @@ def test_every_swept_setting_is_a_valid_config(quick):
             for k in path.split("."):
                 node = getattr(node, k)
             assert node == v or (isinstance(v, tuple) and tuple(node) == v)
+
+
+def test_pareto_front_cost_resolution():
+    # (cost, error). Without a resolution (1.00, 2) loses to (0.99, 2): 1 % cheaper, as accurate.
+    # With 5 % the two costs are equal and neither dominates; (0.90, 2.5) is cheaper beyond the
+    # resolution but less accurate, so it dominates nothing; (1.03, 1.0) is the same cost as
+    # (1.00, 2) and (0.99, 2) within 5 % and more accurate, so it dominates both; (2.0, 0.0)
+    # stays (the reference).
+    cost = [1.00, 0.99, 0.90, 2.0]
+    err = [2.0, 2.0, 2.5, 0.0]
+    assert pareto_front(cost, err).tolist() == [False, True, True, True]
+    assert pareto_front(cost, err, cost_rtol=0.05).tolist() == [True, True, True, True]
+    cost2, err2 = cost + [1.03], err + [1.0]
+    assert pareto_front(cost2, err2, cost_rtol=0.05).tolist() == [False, False, True, True, True]
+    with pytest.raises(ValueError, match="cost_rtol"):
+        pareto_front(cost, err, cost_rtol=-0.1)
+
+
+def test_position_off_share_by_hand():
+    # 5 points: (a) both fixed 0.5 m apart: same; (b) both fixed 3 m apart: off; (c) only the
+    # setting has a fix: off; (d) only the reference: off; (e) neither: same -> 3 of 5 = 60 %
+    import numpy as np
+
+    from veriloc_rt.bench import POSITION_TOL_M, _chain_deviation
+    from veriloc_rt.diagnostics import BenignRun
+
+    nan = np.nan
+    ref_pos = np.array([[0.0, 0.0], [10.0, 0.0], [nan, nan], [5.0, 5.0], [nan, nan]])
+    run_pos = np.array([[0.5, 0.0], [13.0, 0.0], [1.0, 1.0], [nan, nan], [nan, nan]])
+    assert POSITION_TOL_M == 1.0
+
+    def mk(pos):
+        n = pos.shape[0]
+        z = np.zeros((n, 3))
+        return BenignRun(points=np.arange(n), toa=z, los_delay=z, az=z, geo_az=z, pos=pos,
+                         truth=np.zeros((n, 2)), decisions=np.zeros((n, 4), bool),
+                         seconds_per_point=0.1)
+
+    m = _chain_deviation(mk(run_pos), mk(ref_pos))
+    assert m["position_off_pct"] == pytest.approx(60.0)
+    assert m["fix_mismatch_pct"] == pytest.approx(40.0)
+    assert _chain_deviation(mk(ref_pos), mk(ref_pos))["position_off_pct"] == 0.0
