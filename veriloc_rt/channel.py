@@ -37,7 +37,7 @@ from .nr.ofdm import OFDM
 from .propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "equal_arrival_powers",
-           "re_amplitude", "symbol_times", "frequency_response", "apply_frequency", "apply_time",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
 
@@ -140,6 +140,19 @@ def equal_arrival_powers(power_gain: np.ndarray, max_power_w: float, enabled: bo
 def re_amplitude(power_w, ofdm: OFDM) -> np.ndarray:
     """Scale of a unit-RE grid transmitted at ``power_w``: sqrt(P N_fft / N_sc)."""
     return np.sqrt(np.asarray(power_w, dtype=float) * ofdm.fft_size / ofdm.num_subcarriers)
+
+
+def occupied_power_factor(mode: str, num_subcarriers: int, occupied_res: int) -> float:
+    """Factor on a transmitter's power per RE: 1 for ``mode`` 'carrier'; for 'occupied' its power
+    is spread over the ``occupied_res`` REs it transmits per PRS symbol instead of the carrier's
+    ``num_subcarriers``, so ``num_subcarriers / occupied_res``."""
+    if mode == "carrier":
+        return 1.0
+    if mode != "occupied":
+        raise ValueError(f"Argument `mode` must be 'carrier' or 'occupied', not {mode!r}")
+    if not 0 < occupied_res <= num_subcarriers:
+        raise ValueError(f"Argument `occupied_res` must be in (0, {num_subcarriers}], not {occupied_res}")
+    return num_subcarriers / occupied_res
 
 
 _LAYOUTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}

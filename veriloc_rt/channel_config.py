@@ -18,6 +18,7 @@ DOMAINS = ("frequency", "time")
 TIME_FRONT_ENDS = ("correlator", "ofdm")
 #: ToA rules: the paper's strongest correlation peak, or the first path above a threshold
 TOA_METHODS = ("first_path", "strongest")
+PRS_POWER_MODES = ("carrier", "occupied")
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,12 @@ class ChannelConfig:
     power_control: bool = param(True, "idealised power control: each serving BS's power is set "
                                 "so all arrive equally strong, the weakest link at the maximum "
                                 "power; false: every BS at the maximum")
+    prs_power: str = param("carrier", "how a transmitter's power maps onto its REs: 'carrier': "
+                           "P over the fully loaded carrier (energy per RE P / N_sc, as for "
+                           "data); 'occupied': P over the REs it transmits in a PRS symbol (PRS, "
+                           "plus tag REs when tags are sent; the muted REs' power moves to them, "
+                           "PRS power boosting), e.g. +4.8 dB per RE for comb 6 with tags, "
+                           "+7.8 dB without", choices=PRS_POWER_MODES)
     adversary_power_dbm: float = param(48.0, "adversary transmit power (paper: 48 dBm)",
                                        lo=-50.0, hi=90.0)
     ue_power_dbm: float = param(23.0, "UE uplink (SRS) transmit power", lo=-50.0, hi=40.0)

@@ -112,6 +112,12 @@ def cmd_run(args) -> int:
     print(f"time: propagation {t['propagation']:.1f} s, chain {t.get('chain_total', 0):.1f} s, "
           f"adversary {t.get('adversary_total', 0):.1f} s, detectors "
           f"{t.get('detectors_total', 0):.1f} s; total {t['total']:.1f} s")
+    from .receiver.chain import STAGES
+
+    print("chain by stage (s, summed over workers): " + ", ".join(
+        f"{k} {t[f'{k}_total']:.1f}" for k in STAGES if f"{k}_total" in t))
+    print(f"peak memory: {t['peak_rss_main_mib']:.0f} MiB main process, "
+          f"{t['peak_rss_worker_mib']:.0f} MiB largest worker")
     print(f"wrote {out}/ (metrics.json, <scenario>_results.csv, run.json, *.png, scene/)")
     return 0
 

@@ -271,6 +271,10 @@ class Config:
                                 f"a serving-BS slot 0..{self.nr.num_bs - 1}")
         if len(set(slots)) != len(slots):
             raise bad_value("threats.fbs.spoofed_slots", list(slots), "no repeated slot")
+        if self.threats.fbs.mode == "bias" and len(set(slots or range(self.nr.num_bs))) == self.nr.num_bs:
+            raise bad_value("threats.fbs.spoofed_slots", list(slots),
+                            "with threats.fbs.mode 'bias', a subset of the serving BSs (a bias on "
+                            "every BS is common and cancels in every RSTD)")
 
     def replace(self, **changes: Any) -> "Config":
         """Copy with top-level fields changed (``seed=...``)."""

@@ -122,6 +122,15 @@ def _check_resume(out: Path, cfg: Config) -> None:
                          "(or --points/--seed); resume with the same ones or use a new --out")
 
 
+def _peak_rss_mib() -> dict:
+    """Peak resident memory so far, MiB: this process and its largest finished child (a forked
+    chain worker; workers are joined before this is read). Linux reports ru_maxrss in KiB."""
+    import resource
+
+    return {"peak_rss_main_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "peak_rss_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
+
+
 def _write_run_json(out: Path, cfg: Config, timing: dict, geometry: Geometry, status: str) -> None:
     info = {"config": config_to_dict(cfg), "seed": cfg.seed, "status": status,
             "versions": package_versions(), "timing_s": timing,
@@ -204,6 +213,7 @@ def _run(cfg: Config, out_dir, progress: Progress | None, resume: bool, workers:
     timing.update({f"{k}_total": v for k, v in runner.timing.items()})
     timing["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
     timing["total"] = time.perf_counter() - t0
+    timing.update(_peak_rss_mib())
     metrics["timing_s"] = timing
     metrics["propagation_model"] = cfg.propagation.model
     if out:

@@ -31,7 +31,8 @@ import math
 import numpy as np
 
 from .channel import (Links, add_noise, apply_frequency, dbm_to_watt, equal_arrival_powers,
-                      re_amplitude, subcarrier_frequencies, thermal_noise_variance)
+                      occupied_power_factor, re_amplitude, subcarrier_frequencies,
+                      thermal_noise_variance)
 from .config import Config
 from .propagation.cir import CIR
 from .receiver.chain import PositioningChain
@@ -56,6 +57,11 @@ class AdversarySignal:
         self.freqs = subcarrier_frequencies(self.ofdm)
         self.unit = float(re_amplitude(dbm_to_watt(cfg.channel.adversary_power_dbm), self.ofdm))
         self.fbs = FalseBaseStation(cfg.threats.fbs, cfg.threats.fbs.spoofed_slots or None)
+        # the spoofer transmits each replica's PRS, and its tag fill where the network has tags
+        fill = cfg.threats.fbs.tag_fill != "none" and cfg.security.tag_scheme != "none"
+        self.fbs_power_factor = occupied_power_factor(
+            cfg.channel.prs_power, cfg.nr.num_subcarriers,
+            cfg.nr.num_subcarriers // cfg.nr.comb * (2 if fill else 1))
         self.meaconer = Meaconer(cfg.threats.meaconing)
         self.jammer = Jammer(cfg.nr, cfg.threats.jamming)
         fs = self.ofdm.sample_rate_hz
@@ -94,7 +100,8 @@ class AdversarySignal:
         out = np.zeros(self.shape, dtype=np.complex128)
         if not reps:
             return out
-        amp = float(re_amplitude(self.fbs.power_w / len(reps), self.ofdm)) / self.unit
+        amp = float(re_amplitude(self.fbs.power_w / len(reps) * self.fbs_power_factor,
+                                 self.ofdm)) / self.unit
         for _, delay, grid in reps:
             out += grid * self._delay(delay)[None, None, :]
         return amp * out
@@ -106,7 +113,8 @@ class AdversarySignal:
         powers = equal_arrival_powers(Links.from_cir(bs_ue, point).power_gain(),
                                       float(dbm_to_watt(ch.bs_max_power_dbm)), ch.power_control)
         y = self.relay_rx_gain * apply_frequency(Links.from_cir(bs_adv, point), grids,
-                                                 re_amplitude(powers, self.ofdm), self.ofdm,
+                                                 re_amplitude(powers * self.chain.bs_power_factor,
+                                                              self.ofdm), self.ofdm,
                                                  self.slots, 0.0)[0]
         y = add_noise(y, self.adv_noise_var, rng)
         # AGC over the whole input (signal + noise): RE power p means carrier power

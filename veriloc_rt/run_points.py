@@ -43,7 +43,7 @@ import numpy as np
 
 from .config import Config
 from .detectors import ABSADetector, HandshakeDetector, KalmanTracker, TagDetector
-from .receiver.chain import ChainResult, PositioningChain
+from .receiver.chain import STAGES, ChainResult, PositioningChain
 from .rng import stream
 from .run_adversary import AdversarySignal
 
@@ -117,7 +117,8 @@ class ScenarioRunner:
         #: chain results by cache key: (key, i) benign, shared by the scenarios (common random
         #: numbers); (key, scenario, i) attack points computed by a worker, used once
         self._benign: dict[tuple, ChainResult] = {}
-        self.timing = {"adversary": 0.0, "chain": 0.0, "detectors": 0.0}
+        #: seconds: adversary signals, chain calls (total and by stage, :data:`STAGES`), detectors
+        self.timing = {"adversary": 0.0, "chain": 0.0, **dict.fromkeys(STAGES, 0.0), "detectors": 0.0}
         self._last_valid: np.ndarray | None = None
 
     # -- state -------------------------------------------------------------------------------
@@ -188,9 +189,12 @@ class ScenarioRunner:
                                                                  _SCEN[scenario], mode, i))
             self.timing["adversary"] += time.perf_counter() - t
         t = time.perf_counter()
+        before = dict(chain.stage_s)
         res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=i,
                     adv_ue=p.adv_ue if attack else None, adversary_signal=sig)
         self.timing["chain"] += time.perf_counter() - t
+        for k in STAGES:
+            self.timing[k] += chain.stage_s[k] - before[k]
         if not attack:
             self._benign[ck] = res
         return res

@@ -196,3 +196,28 @@ def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
     np.testing.assert_allclose(f.peak_snr_db, t.peak_snr_db, atol=0.1)
     # the uplink draws from the point's own generator: the same in both
     np.testing.assert_array_less(np.abs(f.uplink.toa_s - t.uplink.toa_s) * fs, FRONT_END_SAMPLES)
+
+
+class _SeenChain(PositioningChain):
+    """Records the noiseless received grid at the chain's one noise entry point."""
+
+    def _add_noise(self, x, rng):
+        self.seen = x
+        return super()._add_noise(x, rng)
+
+
+@pytest.mark.parametrize("tags,factor", [("hmac", 3.0), ("none", 6.0)])
+def test_occupied_prs_power_raises_the_received_re_energy_by_the_muted_share(tags, factor):
+    """channel.prs_power 'occupied': a BS's power is spread over the REs it sends per PRS symbol,
+    comb 6 -> 1/6 of the carrier (PRS) or 2/6 (PRS + tag), so every received RE carries 6x or 3x
+    the 'carrier' convention's energy (independent: the comb's share of subcarriers). Same CIR,
+    linear chain up to the noise: the ratio is exact to rounding."""
+    cir = exact_cir(np.array([10.0, 20.0, 1.5]))
+    energy = {}
+    for mode in ("carrier", "occupied"):
+        keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
+        ch = _SeenChain(NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme=tags),
+                        ChannelConfig(prs_power=mode), ReceiverConfig(), ArrayConfig(), FC, keys)
+        ch(cir, 0, np.random.default_rng(1))
+        energy[mode] = float(np.sum(np.abs(ch.seen) ** 2))
+    assert energy["occupied"] / energy["carrier"] == pytest.approx(factor, rel=1e-9)

@@ -6,6 +6,7 @@ import json
 import pytest
 
 from veriloc_rt.cli import main
+from veriloc_rt.receiver.chain import STAGES
 
 from .test_cli import ROOT
 
@@ -33,6 +34,12 @@ def test_run_uma(tmp_path):
     assert main(["run", str(cfg), "--out", str(tmp_path / "r")]) == 0
     s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
     assert s["bs_to_ue"]["links_with_path_pct"] == 100.0
+    # the chain's stages partition each chain call: their sum cannot exceed the calls' total
+    t = json.loads((tmp_path / "r" / "metrics.json").read_text())["timing_s"]
+    stages = [t[f"{k}_total"] for k in STAGES]
+    assert all(v > 0 for v in stages)
+    assert sum(stages) <= t["chain_total"]
+    assert t["peak_rss_main_mib"] > 50  # numpy + scipy alone take more
 
 
 @pytest.mark.raytrace

@@ -29,6 +29,11 @@ def test_empty_config_is_the_default():
     ({"scene": []}, "scene", "an object"),
     ({"threats": {"fbs": {"spoofed_slots": [3]}}}, "threats.fbs.spoofed_slots[0]", "0..2"),
     ({"threats": {"fbs": {"spoofed_slots": [1, 1]}}}, "threats.fbs.spoofed_slots", "repeated"),
+    ({"threats": {"fbs": {"mode": "bias"}}}, "threats.fbs.spoofed_slots", "a subset"),
+    ({"threats": {"fbs": {"mode": "bias", "spoofed_slots": [0, 2, 1]}}},
+     "threats.fbs.spoofed_slots", "cancels"),
+    ({"threats": {"fbs": {"mode": "delay"}}}, "threats.fbs.mode", "'bias'"),
+    ({"channel": {"prs_power": "boosted"}}, "channel.prs_power", "'occupied'"),
     ({"run": {"scenarios": ["none", "spoof"]}}, "run.scenarios[1]", "'fbs'"),
     ({"run": {"attack_start_fraction": 0.8}}, "run.attack_end_fraction", "attack_start_fraction"),
 ])

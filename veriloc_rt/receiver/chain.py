@@ -17,12 +17,13 @@ CIRs. It works the same on ray-traced and UMa CIRs (both are :class:`CIR`):
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt,
+from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt, occupied_power_factor,
                        equal_arrival_powers, re_amplitude, thermal_noise_variance, timing_reference)
 from ..channel_config import ChannelConfig, ReceiverConfig
 from ..config import ArrayConfig
@@ -46,6 +47,24 @@ __all__ = ["ChainResult", "PositioningChain"]
 
 #: identities given to empty serving slots (top of the u32 range the tags carry)
 _DUMMY_ID = 0xFFFF_FF00
+
+
+#: stages of one chain call, in order: PRS/tag grids and replicas; CIRs applied plus noise;
+#: Doppler/timing sync and ToA per BS; multilateration; AoA; tag decoding; the uplink (SRS
+#: through its own channel, ToA at the BSs, UL fix)
+STAGES = ("waveform", "channel", "toa", "position", "aoa", "tags", "uplink")
+
+
+class _StageClock:
+    """Adds the time since the previous mark to ``totals[stage]`` at each call."""
+
+    def __init__(self, totals: dict):
+        self.totals, self.t = totals, time.perf_counter()
+
+    def __call__(self, stage: str) -> None:
+        now = time.perf_counter()
+        self.totals[stage] += now - self.t
+        self.t = now
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,11 +138,16 @@ class PositioningChain:
         self.uplink = UplinkPositioner(nr, channel, receiver) if receiver.uplink else None
         fs = self.ofdm.sample_rate_hz
         self.noise_var = thermal_noise_variance(fs, channel.ue_noise_figure_db) if channel.noise else 0.0
+        # a BS transmits its PRS, and its tag when tags are sent, in each PRS symbol
+        res_per_bs = nr.num_subcarriers // nr.comb * (2 if security.tag_scheme != "none" else 1)
+        self.bs_power_factor = occupied_power_factor(channel.prs_power, nr.num_subcarriers, res_per_bs)
         self.frame_samples = self.ofdm.num_samples(self.slots)
         self.buffer_samples = self.frame_samples + int(np.ceil(receiver.search_window_s * fs)) + 64
         self.busy_symbols = tuple(int(l) for l in nr.prs_symbols)
         self.decimation = max(1, min(channel.time_decimation, self.ofdm.fft_size // nr.min_fft_size))
         self._frame: tuple | None = None
+        #: seconds spent per stage over every call (a run reports them; reading is optional)
+        self.stage_s = dict.fromkeys(STAGES, 0.0)
 
     @property
     def num_bs(self) -> int:
@@ -246,14 +270,17 @@ class PositioningChain:
             adversary_signal = np.asarray(adversary_signal)
             adv = Links.from_cir(adv_ue, point)
         bs_ids = tuple(int(b) for b in bs_ue.tx_index[point])
+        clock = _StageClock(self.stage_s)
         _, verifier = self.setup(bs_ids)
         sig = self.frame_signals(bs_ids, frame, encrypted_replica)
+        clock("waveform")
         links = Links.from_cir(bs_ue, point)
         powers = equal_arrival_powers(links.power_gain(), float(dbm_to_watt(self.channel.bs_max_power_dbm)),
                                       self.channel.power_control)
-        amps = re_amplitude(powers, self.ofdm)
+        amps = re_amplitude(powers * self.bs_power_factor, self.ofdm)
         t0 = timing_reference(links, self.channel.timing_guard_s)
         grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng)
+        clock("channel")
         nv = noise_variance(grid, self.busy_symbols)
         nv = nv if np.isfinite(nv) else self.noise_var
         dof = noise_dof(grid, self.busy_symbols)
@@ -271,7 +298,9 @@ class PositioningChain:
         bs_pos = bs_ue.tx_pos[point]
         ue_h = float(bs_ue.rx_pos[point, 2])
         solver = Multilaterator(ue_height_m=ue_h, max_residual_m=self.receiver.max_residual_m)
+        clock("toa")
         fix = solver(bs_pos, np.where(det, rstd, np.nan), 0, det)
+        clock("position")
         zen = self._zenith(bs_pos, fix) if zenith is None else np.broadcast_to(np.asarray(zenith, float), (self.num_bs,))
         aoas: list[AoAEstimate | None] = []
         az = np.full(self.num_bs, np.nan)
@@ -290,14 +319,17 @@ class PositioningChain:
             if reference_azimuth is not None:
                 ref = np.broadcast_to(np.asarray(reference_azimuth, dtype=float), (self.num_bs,))[b]
                 az[b] = float(est.resolve(ref)[0])
+        clock("aoa")
         tags = np.zeros(self.num_bs, dtype=bool)
         if verifier is not None:
             for b, (e, _) in enumerate(ests):
                 rep = sig["replicas"][b] if encrypted_replica is None else None
                 tags[b] = e.detected and self._tags(verifier, grid, e, b, frame, rep)
+        clock("tags")
         up = None
         if self.uplink is not None:
             up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)
+        clock("uplink")
         log.debug("point %d: detected %s, fix %s", point, det, fix.status)
         return ChainResult(detected=det, toa_s=toa, rstd_s=rstd,
                            doppler_hz=np.array([e.doppler_hz for e, _ in ests]),

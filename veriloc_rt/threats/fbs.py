@@ -22,6 +22,12 @@ Assumptions (documented choices):
   replica arrive when BS i's signal would arrive at the target (replicas overlap the legitimate
   correlation window; exact if ``p_UE_hat`` is exact). The adversary can only delay, so any
   negative delay shifts all delays by one common amount (``fbs_delays``), which changes no RSTD.
+* **Mode 'bias'** (``FBSConfig.mode``): instead of a target, each spoofed BS's replica arrives
+  a fixed ``bias_s`` after that BS's own signal would reach the UE estimate, the paper's "specific
+  timing delay" that biases the RSTD. With every BS spoofed the bias is common and cancels; with a
+  subset (``spoofed_slots``) the biased and the true hyperbolas meet off the UE, or not at all
+  (multilateration's residual check: a DoS). A delay that would have to be negative (the
+  adversary farther from the UE than a BS) moves all replicas later by the same amount.
 * **Tags**: the adversary has no keys, so it cannot form valid tags: by default it fills the tag
   REs with random QPSK (its best attempt at a forged tag, which also spoils the legitimate tag's
   decoding under overshadowing); ``tag_fill='none'`` leaves them empty.
@@ -48,6 +54,9 @@ __all__ = ["FBSConfig", "FBSPlan", "FalseBaseStation", "fbs_delays", "fbs_delays
 log = logging.getLogger(__name__)
 
 
+FBS_MODES = ("target", "bias")
+
+
 @dataclass(frozen=True)
 class FBSConfig:
     """False-BS selective PRS spoofer."""
@@ -60,6 +69,14 @@ class FBSConfig:
     tag_fill: str = param("random_qpsk", "what the spoofer puts in the tag REs: 'random_qpsk' "
                           "(forged tag attempt) or 'none' (empty)",
                           choices=("random_qpsk", "none"))
+    mode: str = param("target", "'target': replica delays that move the fix to the target "
+                      "(``target_offset_m`` from the UE estimate); 'bias': each spoofed BS's "
+                      "replica arrives ``bias_s`` after that BS's own signal would reach the UE "
+                      "estimate (a fixed timing bias on its RSTD, the paper's 'specific timing "
+                      "delay': with a subset of BSs spoofed the biased hyperbolas meet off the UE, "
+                      "or nowhere, a DoS)", choices=FBS_MODES)
+    bias_s: float = param(2e-6, "mode 'bias': timing bias of every spoofed BS", lo=-100e-6,
+                          hi=100e-6)
     spoofed_slots: tuple[int, ...] = param((), "serving-BS slots (0 = the RSTD reference) whose "
                                            "PRS the spoofer replicates; empty: all. A subset "
                                            "biases only those BSs' timing, the others keep the "
@@ -155,9 +172,16 @@ class FalseBaseStation:
 
         :param bs_pos: [num_bs, 3] float64, m; adversary, ue_estimate : [3] float64, m
         """
-        t = target_position(ue_estimate, self.config.target_offset_m,
-                            np.radians(self.config.target_bearing_deg))
-        d = fbs_delays(bs_pos, t, adversary, ue_estimate)
+        if self.config.mode == "bias":
+            # the replicas arrive at the UE estimate bias_s after the BSs' own signals; the target
+            # is then wherever the receiver's hyperbolas meet (NaN: not the spoofer's choice)
+            t = np.full(np.asarray(ue_estimate).shape, np.nan)
+            d = fbs_delays_absolute(bs_pos, ue_estimate, adversary, ue_estimate) + self.config.bias_s
+            d = d - min(0.0, float(d.min()))
+        else:
+            t = target_position(ue_estimate, self.config.target_offset_m,
+                                np.radians(self.config.target_bearing_deg))
+            d = fbs_delays(bs_pos, t, adversary, ue_estimate)
         idx = range(len(d)) if self.spoofed is None else self.spoofed
         return FBSPlan(t, d, [(int(i), float(d[i])) for i in idx])
 

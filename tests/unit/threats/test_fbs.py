@@ -125,3 +125,50 @@ def test_spoofed_grid_fails_hmac_verification_legit_passes(rng):
     assert verify(legit, 0, 3, 0)
     spoof = spoofer_replicas(nr, 3, [(0, 0.0)], rng, slots=[0])[0][2][0]
     assert not verify(legit + 10.0 * spoof, 0, 3, 0)
+
+
+@pytest.mark.parametrize("bias_s", [2e-6, -0.5e-6])
+def test_bias_mode_adds_the_bias_to_the_spoofed_bs_only(bias_s):
+    """Mode 'bias': replica 1 reaches the UE exactly bias_s after BS 1's own signal, so RSTD 1 is
+    the true one plus the bias (independent: distances), RSTD 2 is untouched (BS 2 not spoofed)."""
+    adv = UE + np.array([-40.0, 15.0, 0.0])
+    plan = FalseBaseStation(FBSConfig(mode="bias", bias_s=bias_s), spoofed=[1])(BS, adv, UE)
+    assert [i for i, _ in plan.replicas] == [1]
+    assert np.all(np.isnan(plan.target))
+    toa_spoofed = _toa_at_ue(plan.delays[1], adv, UE)
+    dist = np.linalg.norm(BS - UE, axis=1)
+    shift = plan.delays - fbs_delays_absolute(BS, UE, adv, UE) - bias_s
+    np.testing.assert_allclose(shift, shift[0], rtol=0, atol=TOL_RSTD_S)  # one common shift
+    assert np.all(plan.delays >= 0)
+    # with no shift needed (the adversary is nearer the UE than every BS) it is exact
+    if shift[0] == 0.0:
+        assert toa_spoofed - dist[1] / C == pytest.approx(bias_s, abs=TOL_RSTD_S)
+        rstd = np.array([0.0, toa_spoofed - dist[0] / C, (dist[2] - dist[0]) / C])
+        truth = _rstd_from_distances(BS, UE)
+        np.testing.assert_allclose(rstd - truth, [0.0, bias_s, 0.0], rtol=0, atol=TOL_RSTD_S)
+    else:
+        assert bias_s < 0  # only a negative bias can need the shift here
+
+
+def test_bias_of_one_ISD_mostly_breaks_the_geometry():
+    """A 2 us (600 m) bias on one BS of a 500 m-ISD triangle: the hyperbolas with the biased
+    range difference exceed the BS baseline from most positions inside the triangle (no fix, a
+    DoS), the rest land far off. Independent check: |c rstd| < baseline is necessary for a fix."""
+    bias_m = 2e-6 * C
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(-150, 150, size=(200, 2))
+    ok = off = 0
+    base = np.linalg.norm(BS[1] - BS[0])
+    for p in xy:
+        ue = np.array([p[0], p[1], 1.5])
+        d = np.linalg.norm(BS - ue, axis=1)
+        r = (d - d[0]) / C
+        r[1] += bias_m / C
+        fix = multilaterate(BS, r, ue_height_m=1.5)
+        if abs(r[1] * C) >= base:
+            assert not fix.ok  # no hyperbola: must be a service failure
+        if fix.ok:
+            ok += 1
+            off += np.linalg.norm(fix.position[:2] - p) > 15.0
+    assert off == ok  # no fix near the UE: a biased RSTD never yields a success
+    assert ok < 0.5 * len(xy)
