@@ -21,8 +21,8 @@ import numpy as np
 from veriloc_rt.config import load_config
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.errors import InputError
-from veriloc_rt.receiver.multilateration import Multilaterator
 from veriloc_rt.scenario import build_geometry
+from veriloc_rt.threats import biased_fix_outcomes
 
 
 def sweep(cfg, biases_m, slots) -> list[tuple[float, float, float, float]]:
@@ -30,25 +30,14 @@ def sweep(cfg, biases_m, slots) -> list[tuple[float, float, float, float]]:
     with tempfile.TemporaryDirectory() as tmp:
         geo = build_geometry(cfg, tmp)
     window = np.flatnonzero(cfg.run.attack_points(geo.num_points))
-    solver = Multilaterator(ue_height_m=cfg.trajectory.ue_height_m,
-                            max_residual_m=cfg.receiver.max_residual_m)
+    bs = geo.bs_pos[geo.serving[window]]
     out = []
     for bias in biases_m:
-        counts = {"success": 0, "large_error": 0, "service_failure": 0}
-        for i in window:
-            bs = geo.bs_pos[geo.serving[i]]
-            ue = geo.ue.pos[i]
-            toa = np.linalg.norm(bs - ue, axis=1) / SPEED_OF_LIGHT
-            toa[list(slots)] += bias / SPEED_OF_LIGHT
-            fix = solver(bs, toa - toa[0], 0)
-            if not fix.ok:
-                counts["service_failure"] += 1
-            elif np.linalg.norm(fix.position[:2] - ue[:2]) <= cfg.run.success_threshold_m:
-                counts["success"] += 1
-            else:
-                counts["large_error"] += 1
-        n = max(len(window), 1)
-        out.append((bias, *(100.0 * counts[k] / n for k in ("success", "large_error", "service_failure"))))
+        got = biased_fix_outcomes(bs, geo.ue.pos[window], bias / SPEED_OF_LIGHT, slots,
+                                  cfg.run.success_threshold_m, cfg.receiver.max_residual_m)
+        n = max(len(got), 1)
+        out.append((bias, *(100.0 * got.count(k) / n
+                            for k in ("success", "large_error", "service_failure"))))
     return out
 
 

@@ -37,7 +37,8 @@ from .nr.ofdm import OFDM
 from .propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "equal_arrival_powers",
-           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "apply_frequency", "apply_time",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response",
+           "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
 
@@ -142,17 +143,17 @@ def re_amplitude(power_w, ofdm: OFDM) -> np.ndarray:
     return np.sqrt(np.asarray(power_w, dtype=float) * ofdm.fft_size / ofdm.num_subcarriers)
 
 
-def occupied_power_factor(mode: str, num_subcarriers: int, occupied_res: int) -> float:
-    """Factor on a transmitter's power per RE: 1 for ``mode`` 'carrier'; for 'occupied' its power
-    is spread over the ``occupied_res`` REs it transmits per PRS symbol instead of the carrier's
-    ``num_subcarriers``, so ``num_subcarriers / occupied_res``."""
+def occupied_power_factor(mode: str, num_subcarriers: int, comb: int, with_tag: bool) -> float:
+    """Factor on a PRS transmitter's power per RE: 1 for ``mode`` 'carrier'; for 'occupied' its
+    power is spread over the REs it sends per PRS symbol (``num_subcarriers / comb`` PRS REs,
+    twice that ``with_tag``) instead of the carrier's ``num_subcarriers``."""
     if mode == "carrier":
         return 1.0
     if mode != "occupied":
         raise ValueError(f"Argument `mode` must be 'carrier' or 'occupied', not {mode!r}")
-    if not 0 < occupied_res <= num_subcarriers:
-        raise ValueError(f"Argument `occupied_res` must be in (0, {num_subcarriers}], not {occupied_res}")
-    return num_subcarriers / occupied_res
+    if not 1 <= comb <= num_subcarriers:
+        raise ValueError(f"Argument `comb` must be in [1, {num_subcarriers}], not {comb}")
+    return num_subcarriers / (num_subcarriers // comb * (2 if with_tag else 1))
 
 
 _LAYOUTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}

@@ -57,11 +57,10 @@ class AdversarySignal:
         self.freqs = subcarrier_frequencies(self.ofdm)
         self.unit = float(re_amplitude(dbm_to_watt(cfg.channel.adversary_power_dbm), self.ofdm))
         self.fbs = FalseBaseStation(cfg.threats.fbs, cfg.threats.fbs.spoofed_slots or None)
-        # the spoofer transmits each replica's PRS, and its tag fill where the network has tags
+        # the spoofer sends each replica's PRS, and its tag fill where the network has tags
         fill = cfg.threats.fbs.tag_fill != "none" and cfg.security.tag_scheme != "none"
-        self.fbs_power_factor = occupied_power_factor(
-            cfg.channel.prs_power, cfg.nr.num_subcarriers,
-            cfg.nr.num_subcarriers // cfg.nr.comb * (2 if fill else 1))
+        self.fbs_power_factor = occupied_power_factor(cfg.channel.prs_power, cfg.nr.num_subcarriers,
+                                                      cfg.nr.comb, fill)
         self.meaconer = Meaconer(cfg.threats.meaconing)
         self.jammer = Jammer(cfg.nr, cfg.threats.jamming)
         fs = self.ofdm.sample_rate_hz

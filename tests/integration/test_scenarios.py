@@ -23,6 +23,7 @@ from veriloc_rt.config import config_from_dict
 from veriloc_rt.engine import run
 from veriloc_rt.report.results import CSV_COLUMNS
 from veriloc_rt.run_points import DETECTORS, OUTCOMES
+from veriloc_rt.threats import biased_fix_outcomes
 
 from .test_cli import ROOT, cli
 
@@ -132,3 +133,25 @@ def test_two_workers_give_the_serial_result(tmp_path):
     assert parallel.metrics["scenarios"] == serial.metrics["scenarios"]
     with pytest.raises(ValueError, match="workers"):
         run(cfg, tmp_path / "x", workers=0)
+
+
+def test_fbs_bias_mode_outcomes_follow_the_geometry():
+    """Mode 'bias' on UMa path loss: the 48 dBm spoofer overshadows the spoofed BS by tens of dB,
+    so the chain measures the true RSTDs plus the bias, and each attack point's outcome must be
+    the one the geometry alone gives (threats.biased_fix_outcomes: exact RSTDs, the same
+    solver). Tolerance: 1 point in 20, for a point whose biased hyperbolas meet within the
+    receiver's ~1 m noise of the residual check or the success threshold."""
+    cfg = config_from_dict({
+        "seed": 4, "propagation": {"model": "uma"}, "trajectory": {"num_points": 40},
+        "run": {"scenarios": ["fbs"], "evaluate_encrypted": False},
+        "threats": {"fbs": {"mode": "bias", "bias_s": 1.5e-6, "spoofed_slots": [1]}}})
+    res = run(cfg)
+    rows = [r for r in res.rows["fbs"] if r.attack]
+    assert len(rows) == 20
+    geo = res.geometry
+    idx = [r.index for r in rows]
+    want = biased_fix_outcomes(geo.bs_pos[geo.serving[idx]], geo.ue.pos[idx], 1.5e-6, [1],
+                               cfg.run.success_threshold_m, cfg.receiver.max_residual_m)
+    got = [r.outcome for r in rows]
+    assert sum(g != w for g, w in zip(got, want)) <= 1, list(zip(got, want))
+    assert len(set(want)) > 1 or want[0] != "success"  # the bias did something to the fix

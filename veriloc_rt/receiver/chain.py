@@ -23,8 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt, occupied_power_factor,
-                       equal_arrival_powers, re_amplitude, thermal_noise_variance, timing_reference)
+from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt,
+                       equal_arrival_powers, occupied_power_factor, re_amplitude,
+                       thermal_noise_variance, timing_reference)
 from ..channel_config import ChannelConfig, ReceiverConfig
 from ..config import ArrayConfig
 from ..constants import SPEED_OF_LIGHT
@@ -138,9 +139,8 @@ class PositioningChain:
         self.uplink = UplinkPositioner(nr, channel, receiver) if receiver.uplink else None
         fs = self.ofdm.sample_rate_hz
         self.noise_var = thermal_noise_variance(fs, channel.ue_noise_figure_db) if channel.noise else 0.0
-        # a BS transmits its PRS, and its tag when tags are sent, in each PRS symbol
-        res_per_bs = nr.num_subcarriers // nr.comb * (2 if security.tag_scheme != "none" else 1)
-        self.bs_power_factor = occupied_power_factor(channel.prs_power, nr.num_subcarriers, res_per_bs)
+        self.bs_power_factor = occupied_power_factor(channel.prs_power, nr.num_subcarriers, nr.comb,
+                                                     security.tag_scheme != "none")
         self.frame_samples = self.ofdm.num_samples(self.slots)
         self.buffer_samples = self.frame_samples + int(np.ceil(receiver.search_window_s * fs)) + 64
         self.busy_symbols = tuple(int(l) for l in nr.prs_symbols)

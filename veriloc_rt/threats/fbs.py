@@ -49,7 +49,7 @@ from ..nr.transmitter import PRSTransmitter
 from ..security.config import SecurityConfig
 
 __all__ = ["FBSConfig", "FBSPlan", "FalseBaseStation", "fbs_delays", "fbs_delays_absolute",
-           "target_position", "spoofer_replicas"]
+           "target_position", "spoofer_replicas", "biased_fix_outcomes"]
 
 log = logging.getLogger(__name__)
 
@@ -220,4 +220,35 @@ def spoofer_replicas(nr: NRConfig, frame: int, replicas, rng: np.random.Generato
             grid[:, sym, k] = qpsk(bits.reshape(bits.shape[:-2] + (-1,)))
         out.append((int(bs), float(delay), grid))
     log.debug("spoofer: %d replicas, frame %d", len(out), frame)
+    return out
+
+
+def biased_fix_outcomes(bs_pos, ue_pos, bias_s: float, slots, success_threshold_m: float,
+                        max_residual_m: float = 10.0) -> list[str]:
+    """What mode 'bias' does to the fix by geometry alone: exact RSTDs, ``bias_s`` added to the
+    ``slots``' arrivals, the chain's multilaterator (same residual check).
+
+    :param bs_pos: [P, B, 3] float64, m, serving BSs per point (slot 0 the RSTD reference)
+    :param ue_pos: [P, 3] float64, m
+    :return: per point 'success' (fix within ``success_threshold_m``), 'large_error' or
+        'service_failure' (no fix), the run's outcome labels
+    """
+    from ..receiver.multilateration import Multilaterator
+
+    b = np.asarray(bs_pos, dtype=np.float64)
+    u = np.asarray(ue_pos, dtype=np.float64)
+    if b.ndim != 3 or u.shape != (b.shape[0], 3):
+        raise ValueError(f"Arguments `bs_pos` [P, B, 3] and `ue_pos` [P, 3] do not match: "
+                         f"{b.shape}, {u.shape}")
+    out = []
+    for bs, ue in zip(b, u):
+        toa = np.linalg.norm(bs - ue, axis=1) / SPEED_OF_LIGHT
+        toa[list(slots)] += bias_s
+        fix = Multilaterator(ue_height_m=float(ue[2]), max_residual_m=max_residual_m)(bs, toa - toa[0], 0)
+        if not fix.ok:
+            out.append("service_failure")
+        elif np.linalg.norm(fix.position[:2] - ue[:2]) <= success_threshold_m:
+            out.append("success")
+        else:
+            out.append("large_error")
     return out
