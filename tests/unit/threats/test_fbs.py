@@ -137,17 +137,24 @@ def test_bias_mode_adds_the_bias_to_the_spoofed_bs_only(bias_s):
     assert np.all(np.isnan(plan.target))
     toa_spoofed = _toa_at_ue(plan.delays[1], adv, UE)
     dist = np.linalg.norm(BS - UE, axis=1)
-    shift = plan.delays - fbs_delays_absolute(BS, UE, adv, UE) - bias_s
-    np.testing.assert_allclose(shift, shift[0], rtol=0, atol=TOL_RSTD_S)  # one common shift
+    # the adversary (43 m from the UE) is nearer than every BS by more than |bias|: no shift
+    np.testing.assert_array_equal(plan.delays, fbs_delays_absolute(BS, UE, adv, UE) + bias_s)
     assert np.all(plan.delays >= 0)
-    # with no shift needed (the adversary is nearer the UE than every BS) it is exact
-    if shift[0] == 0.0:
-        assert toa_spoofed - dist[1] / C == pytest.approx(bias_s, abs=TOL_RSTD_S)
-        rstd = np.array([0.0, toa_spoofed - dist[0] / C, (dist[2] - dist[0]) / C])
-        truth = _rstd_from_distances(BS, UE)
-        np.testing.assert_allclose(rstd - truth, [0.0, bias_s, 0.0], rtol=0, atol=TOL_RSTD_S)
-    else:
-        assert bias_s < 0  # only a negative bias can need the shift here
+    assert toa_spoofed - dist[1] / C == pytest.approx(bias_s, abs=TOL_RSTD_S)
+    rstd = np.array([0.0, toa_spoofed - dist[0] / C, (dist[2] - dist[0]) / C])
+    truth = _rstd_from_distances(BS, UE)
+    np.testing.assert_allclose(rstd - truth, [0.0, bias_s, 0.0], rtol=0, atol=TOL_RSTD_S)
+
+
+def test_bias_mode_shifts_all_replicas_when_one_would_be_early():
+    """A bias earlier than the adversary's head start (-1 us against BS 0, 250 m away, with the
+    adversary 150 m from the UE) would need a negative delay: every replica moves later by the
+    same amount, so the spoofed replicas keep their relative bias."""
+    adv = UE + np.array([150.0, 0.0, 0.0])
+    plan = FalseBaseStation(FBSConfig(mode="bias", bias_s=-1e-6), spoofed=[1])(BS, adv, UE)
+    d_abs = fbs_delays_absolute(BS, UE, adv, UE) - 1e-6
+    assert d_abs.min() < 0 and plan.delays.min() == pytest.approx(0.0, abs=1e-18)
+    np.testing.assert_allclose(plan.delays - d_abs, -d_abs.min(), rtol=0, atol=TOL_RSTD_S)
 
 
 def test_bias_of_one_ISD_mostly_breaks_the_geometry():
