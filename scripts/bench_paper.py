@@ -49,9 +49,14 @@ def run_one(name: str, cfg: dict, out: Path, workers: int) -> dict:
     return timing
 
 
+def peak_mib(t: dict) -> float:
+    """Peak RSS of a run, MiB: its largest process (forked workers share the main one's pages)."""
+    return max(t.get("peak_rss_main_mib", 0.0), t.get("peak_rss_worker_mib", 0.0))
+
+
 def row(name: str, t: dict) -> str:
     rec = sum(t.get(f"{k}_total", 0.0) for k in RECEIVER)
-    mem = max(t.get("peak_rss_main_mib", 0.0), t.get("peak_rss_worker_mib", 0.0))
+    mem = peak_mib(t)
     target = TARGETS[name]
     stages = {"tracing": t.get("propagation", 0.0), "waveform": t.get("waveform_total", 0.0),
               "channel": t.get("channel_total", 0.0), "receiver": rec,
@@ -95,8 +100,7 @@ def main(argv=None) -> int:
     for name, t in results.items():
         print(row(name, t))
     (out / "bench_paper.json").write_text(json.dumps(results, indent=2))
-    mem = max(max(t.get("peak_rss_main_mib", 0.0), t.get("peak_rss_worker_mib", 0.0))
-              for t in results.values())
+    mem = max(peak_mib(t) for t in results.values())
     print(f"peak memory {mem / 1024:.2f} GiB (target {MEMORY_TARGET_MIB / 1024:.0f} GiB: "
           f"{'met' if mem <= MEMORY_TARGET_MIB else 'missed'}); wrote {out}/bench_paper.json")
     return 0

@@ -134,7 +134,12 @@ def fbs_delays(bs_pos, target, adversary=None, ue_estimate=None) -> np.ndarray:
     if adversary is None:
         dist = np.linalg.norm(b - t, axis=1)
         return (dist - dist.min()) / SPEED_OF_LIGHT
-    d = fbs_delays_absolute(b, t, adversary, ue_estimate)
+    return _later_by_earliest(fbs_delays_absolute(b, t, adversary, ue_estimate))
+
+
+def _later_by_earliest(d: np.ndarray) -> np.ndarray:
+    """Delays moved later by one common amount so that none is negative (unchanged if none is):
+    the spoofer can only delay, and a common shift changes no RSTD between its replicas."""
     return d - min(0.0, float(d.min()))
 
 
@@ -176,8 +181,8 @@ class FalseBaseStation:
             # the replicas arrive at the UE estimate bias_s after the BSs' own signals; the target
             # is then wherever the receiver's hyperbolas meet (NaN: not the spoofer's choice)
             t = np.full(np.asarray(ue_estimate).shape, np.nan)
-            d = fbs_delays_absolute(bs_pos, ue_estimate, adversary, ue_estimate) + self.config.bias_s
-            d = d - min(0.0, float(d.min()))
+            d = _later_by_earliest(fbs_delays_absolute(bs_pos, ue_estimate, adversary, ue_estimate)
+                                   + self.config.bias_s)
         else:
             t = target_position(ue_estimate, self.config.target_offset_m,
                                 np.radians(self.config.target_bearing_deg))
@@ -234,6 +239,7 @@ def biased_fix_outcomes(bs_pos, ue_pos, bias_s: float, slots, success_threshold_
         'service_failure' (no fix), the run's outcome labels
     """
     from ..receiver.multilateration import Multilaterator
+    from ..run_points import outcome_of
 
     b = np.asarray(bs_pos, dtype=np.float64)
     u = np.asarray(ue_pos, dtype=np.float64)
@@ -245,10 +251,6 @@ def biased_fix_outcomes(bs_pos, ue_pos, bias_s: float, slots, success_threshold_
         toa = np.linalg.norm(bs - ue, axis=1) / SPEED_OF_LIGHT
         toa[list(slots)] += bias_s
         fix = Multilaterator(ue_height_m=float(ue[2]), max_residual_m=max_residual_m)(bs, toa - toa[0], 0)
-        if not fix.ok:
-            out.append("service_failure")
-        elif np.linalg.norm(fix.position[:2] - ue[:2]) <= success_threshold_m:
-            out.append("success")
-        else:
-            out.append("large_error")
+        out.append(outcome_of(fix.ok, float(np.linalg.norm(fix.position[:2] - ue[:2])),
+                              success_threshold_m))
     return out
