@@ -64,12 +64,15 @@ def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.
     for j in range(kt.shape[0]):
         h[j] = np.interp(kt[j], kp[j], flat_s[j].real) + 1j * np.interp(kt[j], kp[j], flat_s[j].imag)
     h *= np.exp(1j * step * kt)
+    # the floor is relative to the pilots' power: the grid is in physical units (per-RE noise
+    # ~1e-13 W), where an absolute floor would overstate the noise and flatten the LLRs
+    power = float(np.mean(np.abs(flat) ** 2))
     if flat.shape[1] >= 3:
         d = flat[:, 1:-1] - 0.5 * (flat[:, :-2] + flat[:, 2:])
         noise_var = float(np.mean(np.abs(d) ** 2) / 1.5)  # var(n - (n1 + n2)/2) = 1.5 var(n)
-    else:
-        noise_var = 1.0
-    return h, max(noise_var, 1e-12)
+    else:  # no second differences: assume 0 dB per RE
+        noise_var = power
+    return h, max(noise_var, 1e-12 * power, np.finfo(float).tiny)
 
 
 @dataclass(frozen=True)

@@ -93,3 +93,30 @@ def test_waveform_demodulates_to_grid(keys):
 def test_missing_keys_is_an_error():
     with pytest.raises(ValueError, match="no keys"):
         PRSTransmitter(NRConfig(), SecurityConfig(tag_scheme="hmac"), BS_IDS, None)
+
+
+def test_tag_channel_noise_estimate_is_scale_free(keys):
+    """The received grid is in physical units (per-RE noise ~1e-13 W at a UE): the estimated
+    noise variance must scale with the grid's power (a receiver does not depend on the unit),
+    and match the variance injected. Tolerance 15 %: ~1200 second differences of the pilots
+    (std of a variance estimate ~ sqrt(2 / 1200) ~ 4 %, more with their overlap)."""
+    from veriloc_rt.security.tag_receiver import estimate_tag_channel
+
+    nr, sec, tx = make(keys, tag_scheme="hmac")
+    rx = tx(frame=5, slots=[3]).sum(axis=0)[0]
+    k = np.arange(624)
+    h = 0.8 * np.exp(1j * 2.0 - 2j * np.pi * k * 15e3 * 1.3e-6)
+    rng = np.random.default_rng(12)
+    var = 0.4   # per-RE SNR -2 dB, where an under-weighted LLR loses the tag
+    noise = np.sqrt(var / 2) * (rng.standard_normal(rx.shape) + 1j * rng.standard_normal(rx.shape))
+    y = rx * h + noise
+    ver = TagVerifier(nr, sec, BS_IDS, keys)
+    lay = tx.layout
+    for bs in range(3):
+        rep = tx.replica(bs, 5, [3])[0]
+        _, nv1 = estimate_tag_channel(y, lay, bs, rep)
+        assert abs(nv1 / var - 1) < 0.15
+        for c in (1e-7, 1e3):   # a received amplitude of 0.1 uV (W ~ 1e-14) and a large one
+            _, nv = estimate_tag_channel(c * y, lay, bs, rep)
+            assert nv / c**2 == pytest.approx(nv1, rel=1e-9)
+            assert ver(c * y, bs, 5, 3) == ver(y, bs, 5, 3)
