@@ -23,6 +23,7 @@ P when scaled by ``sqrt(P N_fft / N_sc)`` (the OFDM transform is unitary), so P 
 of a fully loaded carrier and the energy per RE is P / (N_sc SCS). Noise is kT F over the sampled
 band: variance ``k T F f_s`` per sample, which is also the variance per RE. The SNR per RE,
 ``P |H|^2 / (k T F N_sc SCS)``, is therefore the same at every sample rate.
+(``ChannelConfig.noise_bandwidth_hz`` scales the density down: :func:`receiver_noise_variance`.)
 """
 
 from __future__ import annotations
@@ -32,11 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
+from .channel_config import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from .constants import BOLTZMANN, REFERENCE_TEMPERATURE
 from .nr.ofdm import OFDM
 from .propagation.cir import CIR, array_response
 
-__all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "equal_arrival_powers",
+__all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response",
            "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
@@ -50,6 +52,16 @@ def dbm_to_watt(power_dbm) -> np.ndarray | float:
 def thermal_noise_variance(sample_rate_hz: float, noise_figure_db: float) -> float:
     """k T0 F f_s: noise power over the sampled band = variance per sample and per RE, W."""
     return float(BOLTZMANN * REFERENCE_TEMPERATURE * 10.0 ** (noise_figure_db / 10.0) * sample_rate_hz)
+
+
+def receiver_noise_variance(channel: ChannelConfig, sample_rate_hz: float, noise_figure_db: float) -> float:
+    """Variance per sample and per RE of a receiver's noise under ``channel``'s noise settings, W:
+    0 without noise; :func:`thermal_noise_variance`, scaled by ``noise_bandwidth_hz / 122.88 MHz``
+    when that convention is set."""
+    if not channel.noise:
+        return 0.0
+    scale = 1.0 if channel.noise_bandwidth_hz is None else channel.noise_bandwidth_hz / REFERENCE_SAMPLE_RATE_HZ
+    return thermal_noise_variance(sample_rate_hz, noise_figure_db) * scale
 
 
 @dataclass(frozen=True, eq=False)

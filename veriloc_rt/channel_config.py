@@ -19,6 +19,8 @@ TIME_FRONT_ENDS = ("correlator", "ofdm")
 #: ToA rules: the paper's strongest correlation peak, or the first path above a threshold
 TOA_METHODS = ("first_path", "strongest")
 PRS_POWER_MODES = ("carrier", "occupied")
+#: the reference IQ rate (122.88 MHz), over which ``noise_bandwidth_hz``'s power is spread
+REFERENCE_SAMPLE_RATE_HZ = 122.88e6
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,12 @@ class ChannelConfig:
     bs_noise_figure_db: float = param(5.0, "BS receiver noise figure (uplink)", lo=0.0, hi=30.0)
     noise: bool = param(True, "add thermal noise (-174 dBm/Hz + noise figure over the sampled "
                         "band); false: noiseless (tests)")
+    noise_bandwidth_hz: float | None = param(
+        None, "null: thermal noise white over the sampled band, density k T0 F (physical). A "
+        "bandwidth B: the noise power k T0 F B of a B-wide channel added to IQ sampled at "
+        "122.88 MHz with no channel filter, i.e. density k T0 F B / 122.88 MHz (a simulator "
+        "convention; the paper's benign tag rates fit B = 10 MHz, 10.9 dB below k T0 F). Every "
+        "receiver: UE, relay, BS (uplink)", lo=0.0, lo_open=True, hi=REFERENCE_SAMPLE_RATE_HZ)
     timing_guard_s: float = param(0.25e-6, "the receiver's timing reference t0 sits this long "
                                   "before the earliest serving-link arrival", lo=0.0, hi=4e-6)
 

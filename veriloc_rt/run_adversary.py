@@ -32,7 +32,7 @@ import numpy as np
 
 from .channel import (Links, add_noise, apply_frequency, dbm_to_watt, equal_arrival_powers,
                       occupied_power_factor, re_amplitude, subcarrier_frequencies,
-                      thermal_noise_variance)
+                      receiver_noise_variance)
 from .config import Config
 from .propagation.cir import CIR
 from .receiver.chain import PositioningChain
@@ -66,7 +66,7 @@ class AdversarySignal:
         fs = self.ofdm.sample_rate_hz
         mc = cfg.threats.meaconing
         nf = cfg.channel.ue_noise_figure_db if mc.noise_figure_db is None else mc.noise_figure_db
-        self.adv_noise_var = thermal_noise_variance(fs, nf) if cfg.channel.noise else 0.0
+        self.adv_noise_var = receiver_noise_variance(cfg.channel, fs, nf)
         self.relay_rx_gain = 10.0 ** (mc.rx_antenna_gain_dbi / 20.0)
         self.shape = (len(self.slots), 14, self.ofdm.num_subcarriers)
 

@@ -25,11 +25,11 @@ from veriloc_rt.scenario import build_geometry
 GAIN_RTOL = 0.02
 
 
-def _relay(tmp_path, **meaconing):
+def _relay(tmp_path, channel=None, **meaconing):
     """(config, AdversarySignal, relayed grid of point 1, the call's arguments)."""
     cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
                             "trajectory": {"num_points": 3}, "seed": 2,
-                            "threats": {"meaconing": meaconing},
+                            "threats": {"meaconing": meaconing}, "channel": channel or {},
                             "run": {"evaluate_encrypted": False}})
     geo = build_geometry(cfg, tmp_path)
     prop = compute_propagation(cfg, geo)
@@ -59,3 +59,6 @@ def test_relay_agc_power_and_receive_gain(tmp_path):
     # a quieter receiver: 9 dB -> 3 dB noise figure is the same 6 dB of SNR
     g3 = _relay(tmp_path, noise_figure_db=3.0)[2]
     assert _snr(g3.ravel(), clean) / snr0 == pytest.approx(10 ** 0.6, rel=GAIN_RTOL)
+    # the channel-bandwidth noise convention reaches the relay's receiver: density x B / 122.88 MHz
+    g_b = _relay(tmp_path, channel={"noise_bandwidth_hz": 10e6})[2]
+    assert _snr(g_b.ravel(), clean) / snr0 == pytest.approx(12.288, rel=GAIN_RTOL)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt,
                        equal_arrival_powers, occupied_power_factor, re_amplitude,
-                       thermal_noise_variance, timing_reference)
+                       receiver_noise_variance, timing_reference)
 from ..channel_config import ChannelConfig, ReceiverConfig
 from ..config import ArrayConfig
 from ..constants import SPEED_OF_LIGHT
@@ -138,7 +138,7 @@ class PositioningChain:
         self.toa = ToAEstimator(receiver, channel.timing_guard_s)
         self.uplink = UplinkPositioner(nr, channel, receiver) if receiver.uplink else None
         fs = self.ofdm.sample_rate_hz
-        self.noise_var = thermal_noise_variance(fs, channel.ue_noise_figure_db) if channel.noise else 0.0
+        self.noise_var = receiver_noise_variance(channel, fs, channel.ue_noise_figure_db)
         self.bs_power_factor = occupied_power_factor(channel.prs_power, nr.num_subcarriers, nr.comb,
                                                      security.tag_scheme != "none")
         self.frame_samples = self.ofdm.num_samples(self.slots)

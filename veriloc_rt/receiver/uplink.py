@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt, re_amplitude,
-                       thermal_noise_variance)
+                       receiver_noise_variance)
 from ..channel_config import ChannelConfig, ReceiverConfig
 from ..nr.config import NRConfig
 from ..nr.ofdm import OFDM
@@ -65,8 +65,7 @@ class UplinkPositioner:
         period = 1.0 / (receiver.srs_comb * nr.subcarrier_spacing_hz)
         window = min(receiver.search_window_s, 0.9 * period - channel.timing_guard_s)
         self.toa = ToAEstimator(replace(receiver, search_window_s=window), channel.timing_guard_s)
-        self.noise_var = (thermal_noise_variance(self.ofdm.sample_rate_hz, channel.bs_noise_figure_db)
-                          if channel.noise else 0.0)
+        self.noise_var = receiver_noise_variance(channel, self.ofdm.sample_rate_hz, channel.bs_noise_figure_db)
 
     def receive(self, link: Links, t0: float, rng: np.random.Generator) -> np.ndarray:
         """One BS's received signal: grid [1, S, 14, K] (frequency) or IQ [1, N] (time)."""
