@@ -209,8 +209,9 @@ class RunConfig:
                                      "encrypted (outcomes_encrypted); the detectors are "
                                      "evaluated on standard PRS, as in the paper")
     digsig: str = param("separate", "'separate': the DigSig column comes from a second, DS-tagged "
-                        "chain call on the same noise and adversary draws (exact, costs a second "
-                        "call per point); 'shared': it reuses the HMAC-tagged run's tag checks "
+                        "chain call on the same noise and adversary draws (it decodes its own "
+                        "tags with the first call's timing; costs the second grid and the tag "
+                        "decoding per point); 'shared': it reuses the HMAC-tagged run's tag checks "
                         "with the same verdict rule (same decoder, codeword lengths differ)",
                         choices=("separate", "shared"))
     realisations: int = param(1, "Monte Carlo realisations: complete runs, realisation r with "

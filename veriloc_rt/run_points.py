@@ -16,7 +16,8 @@ Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted`
 
    * HMAC: :class:`TagDetector` on the chain's tag checks (``security.tag_scheme`` should be
      'hmac'); DigSig: the same rule on a second, DS-tagged chain call with the same noise and
-     adversary draws (``run.digsig='separate'``), or on the HMAC run's checks ('shared');
+     adversary draws (``run.digsig='separate'``; it keeps the first call's timing and decodes
+     its own tags: ``PositioningChain(estimates=...)``), or on the HMAC run's checks ('shared');
    * ABSA: the AoA per BS, resolved against and compared with the azimuth from the *last
      validated position* (the Kalman tracker's position after its last accepted fix; before the
      first one, the current DL fix);
@@ -168,13 +169,18 @@ class ScenarioRunner:
 
     def compute_chains(self, scenario: str, i: int) -> dict:
         """Every chain result point ``i`` of ``scenario`` needs, by cache key (for workers)."""
-        return {self._ck(k, scenario, i): self._chain(k, c, scenario, m, i) for k, c, m in self._keys()}
+        out: dict = {}
+        for k, c, m in self._keys():   # 'standard' first: the DS chain reuses its timing
+            std = out.get(self._ck("standard", scenario, i)) if k == "ds" else None
+            out[self._ck(k, scenario, i)] = self._chain(k, c, scenario, m, i, std)
+        return out
 
     def store_chains(self, results: dict) -> None:
         """Results from :meth:`compute_chains` (run elsewhere) for the next :meth:`point` calls."""
         self._benign.update(results)
 
-    def _chain(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int) -> ChainResult:
+    def _chain(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int,
+               estimates: ChainResult | None = None) -> ChainResult:
         attack = scenario != "none" and bool(self.window[i])
         ck = self._ck(key, scenario, i)
         if ck in self._benign:
@@ -191,7 +197,7 @@ class ScenarioRunner:
         t = time.perf_counter()
         before = dict(chain.stage_s)
         res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=i,
-                    adv_ue=p.adv_ue if attack else None, adversary_signal=sig)
+                    adv_ue=p.adv_ue if attack else None, adversary_signal=sig, estimates=estimates)
         self.timing["chain"] += time.perf_counter() - t
         for k in STAGES:
             self.timing[k] += chain.stage_s[k] - before[k]
@@ -205,7 +211,7 @@ class ScenarioRunner:
         true_xy = self.geo.ue.pos[i, :2]
         res = self._chain("standard", self.chains["standard"], scenario, 0, i)
         est, err, out = self._fix(res, true_xy)
-        ds = self._chain("ds", self.ds_chain, scenario, 0, i) if self.ds_chain is not None else res
+        ds = self._chain("ds", self.ds_chain, scenario, 0, i, res) if self.ds_chain is not None else res
         t = time.perf_counter()
         v = {"HMAC": self.hmac(res.tags_valid, res.detected).valid,
              "DigSig": self.digsig(ds.tags_valid, ds.detected).valid}

@@ -155,3 +155,33 @@ def test_fbs_bias_mode_outcomes_follow_the_geometry():
     got = [r.outcome for r in rows]
     assert sum(g != w for g, w in zip(got, want)) <= 1, list(zip(got, want))
     assert len(set(want)) > 1 or want[0] != "success"  # the bias did something to the fix
+
+
+def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
+    """run.digsig 'separate' decodes the DS-tagged grid's tags on the HMAC-tagged chain's timing
+    (``PositioningChain(estimates=...)``). Second method: the DS chain's own full call, its own
+    ToA on its own grid. The two grids share the PRS REs (same noise stream; the tags sit on
+    other REs) up to the relay's gain control, which sees the tags: every verdict must agree."""
+    from veriloc_rt.engine import compute_propagation, run_keys
+    from veriloc_rt.run_points import ScenarioRunner
+    from veriloc_rt.scenario import build_geometry
+
+    cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                            "trajectory": {"num_points": 12}, "seed": 4,
+                            "run": {"evaluate_encrypted": False}})
+    geo = build_geometry(cfg, tmp_path)
+    prop = compute_propagation(cfg, geo)
+    runner = ScenarioRunner(cfg, geo, prop, run_keys(cfg, len(geo.bs_pos)))
+    seen = []
+    for scenario in cfg.run.scenarios:
+        for i in range(geo.num_points):
+            runner._benign.clear()
+            std = runner._chain("standard", runner.chains["standard"], scenario, 0, i)
+            runner._benign.clear()
+            reuse = runner._chain("ds", runner.ds_chain, scenario, 0, i, std)
+            runner._benign.clear()
+            own = runner._chain("ds", runner.ds_chain, scenario, 0, i)
+            np.testing.assert_array_equal(reuse.tags_valid, own.tags_valid)
+            np.testing.assert_array_equal(reuse.detected, own.detected)
+            seen.extend(own.tags_valid)
+    assert 0 < sum(seen) < len(seen)   # both verdicts occur

@@ -19,7 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -232,6 +232,16 @@ class PositioningChain:
                 return False
         return True
 
+    def _check_tags(self, verifier: TagVerifier | None, grid: np.ndarray, ests: list, frame: int,
+                    sig: dict, encrypted_replica: bool | None) -> np.ndarray:
+        """[num_bs] bool: every checked tag of each detected BS verifies (False without tags)."""
+        tags = np.zeros(self.num_bs, dtype=bool)
+        if verifier is not None:
+            for b, e in enumerate(ests):
+                rep = sig["replicas"][b] if encrypted_replica is None else None
+                tags[b] = e.detected and self._tags(verifier, grid, e, b, frame, rep)
+        return tags
+
     def _zenith(self, bs_pos: np.ndarray, fix: MultilaterationResult) -> np.ndarray:
         """Zenith of arrival from each BS seen from the DL fix (pi/2 without a fix)."""
         if not fix.ok:
@@ -242,7 +252,8 @@ class PositioningChain:
     # -- main ------------------------------------------------------------------------------
     def __call__(self, bs_ue: CIR, point: int, rng: np.random.Generator, *, frame: int = 0,
                  adv_ue: CIR | None = None, adversary_signal: np.ndarray | None = None,
-                 reference_azimuth=None, zenith=None, encrypted_replica: bool | None = None) -> ChainResult:
+                 reference_azimuth=None, zenith=None, encrypted_replica: bool | None = None,
+                 estimates: ChainResult | None = None) -> ChainResult:
         """Run the chain on trajectory point ``point``.
 
         :param bs_ue: CIR [num_points, num_bs] serving BS -> UE (slot 0 = reference)
@@ -255,6 +266,12 @@ class PositioningChain:
         :param reference_azimuth: [num_bs] float64, rad, resolves the ULA mirror ambiguity
         :param zenith: [num_bs] float64, rad, known zenith of arrival (None: from the DL fix)
         :param encrypted_replica: None: each BS's own setting; True/False: force the replica
+        :param estimates: another chain's result for the same point, serving set, PRS and noise
+            stream, differing only in its tags (the HMAC-tagged chain's for a DS-tagged one): its
+            timing, fix, AoA and uplink are kept and only this chain's grid and tags are computed
+            (the MRC weights of the tag check are its peaks). Exact when both chains receive the
+            same PRS REs, as they do through the frequency-domain channel unless the adversary's
+            signal depends on the tags (a relay's gain control sees them: ~1e-3 on its gain)
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
@@ -281,6 +298,13 @@ class PositioningChain:
         t0 = timing_reference(links, self.channel.timing_guard_s)
         grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng)
         clock("channel")
+        if estimates is not None:
+            if len(estimates.toa_estimates) != self.num_bs:
+                raise ValueError(f"Argument `estimates` has {len(estimates.toa_estimates)} BSs, "
+                                 f"the chain {self.num_bs}")
+            tags = self._check_tags(verifier, grid, estimates.toa_estimates, frame, sig, encrypted_replica)
+            clock("tags")
+            return replace(estimates, tags_valid=tags, tags_checked=verifier is not None)
         nv = noise_variance(grid, self.busy_symbols)
         nv = nv if np.isfinite(nv) else self.noise_var
         dof = noise_dof(grid, self.busy_symbols)
@@ -320,11 +344,7 @@ class PositioningChain:
                 ref = np.broadcast_to(np.asarray(reference_azimuth, dtype=float), (self.num_bs,))[b]
                 az[b] = float(est.resolve(ref)[0])
         clock("aoa")
-        tags = np.zeros(self.num_bs, dtype=bool)
-        if verifier is not None:
-            for b, (e, _) in enumerate(ests):
-                rep = sig["replicas"][b] if encrypted_replica is None else None
-                tags[b] = e.detected and self._tags(verifier, grid, e, b, frame, rep)
+        tags = self._check_tags(verifier, grid, [e for e, _ in ests], frame, sig, encrypted_replica)
         clock("tags")
         up = None
         if self.uplink is not None:
