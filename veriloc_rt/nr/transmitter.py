@@ -15,14 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..security.config import SecurityConfig
-from ..security.encryption import encrypted_prs_sequence
+from ..security.encryption import keystream_bits_many
 from ..security.keys import BSKeys
 from ..security.tag_modem import TagModem
 from ..security.tags import PRSParams, make_tag, tag_message
 from .config import NRConfig
 from .grid import ReLayout
 from .ofdm import OFDM
-from .prs import SYMBOLS_PER_SLOT, prs_sequence
+from .prs import SYMBOLS_PER_SLOT, prs_bits, qpsk
 
 log = logging.getLogger(__name__)
 
@@ -58,14 +58,12 @@ def prs_replica(layout: ReLayout, bs: int, setup: BSSetup, frame: int, slots: Se
     k = layout.prs_subcarriers(bs)
     n = layout.res_per_symbol
     grid = np.zeros((len(slots), SYMBOLS_PER_SLOT, layout.num_subcarriers), dtype=np.complex128)
-    for i, s in enumerate(slots):
-        for j, l in enumerate(layout.symbols):
-            if aes_key is None:
-                r = prs_sequence(setup.prs.n_id_seq, int(s), int(l), n)
-            else:
-                r = encrypted_prs_sequence(aes_key, setup.bs_id, setup.prs.n_id_seq, frame, int(s),
-                                           int(l), n)
-            grid[i, l, k[j]] = r
+    pairs = [(int(s), int(l)) for s in slots for l in layout.symbols]
+    bits = np.array([prs_bits(setup.prs.n_id_seq, s, l, n) for s, l in pairs])       # [S L, 2 n]
+    if aes_key is not None:   # b_PRSenc = b_PRS XOR p, every symbol's keystream in one AES call
+        bits = bits ^ keystream_bits_many(aes_key, setup.bs_id, frame, pairs, 2 * n)
+    r = qpsk(bits).reshape(len(slots), len(layout.symbols), n)
+    grid[:, np.asarray(layout.symbols)[:, None], k] = r
     return grid
 
 
@@ -94,6 +92,7 @@ class PRSTransmitter:
         self.keys = dict(keys) if keys is not None else {}
         self.ofdm = OFDM(nr)
         self._standard: dict[tuple, np.ndarray] = {}
+        self._encrypted: dict[tuple, np.ndarray] = {}
         self.modem = (TagModem(security.tag_scheme, self.layout.num_symbols * self.layout.res_per_symbol,
                                security.tag_fill, security.ldpc_iterations, security.ldpc_method)
                       if self.tags else None)
@@ -118,9 +117,15 @@ class PRSTransmitter:
         """
         enc = self.setups[bs].prs.encrypted if encrypted is None else encrypted
         slots = self._slots(slots)
-        if enc:
-            key = self.keys[self.setups[bs].bs_id].aes_key
-            return prs_replica(self.layout, bs, self.setups[bs], frame, slots, key)
+        if enc:   # cached for the frame in hand (the grids and the receiver's replica share it)
+            ck = (bs, tuple(slots), frame)
+            if ck not in self._encrypted:
+                if len(self._encrypted) >= 2 * self.num_bs:
+                    self._encrypted.clear()
+                key = self.keys[self.setups[bs].bs_id].aes_key
+                self._encrypted[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots, key)
+                self._encrypted[ck].setflags(write=False)
+            return self._encrypted[ck].copy()
         # the standard PRS is the same in every frame: cached per (BS position, slots)
         ck = (bs, tuple(slots))
         if ck not in self._standard:

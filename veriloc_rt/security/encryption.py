@@ -70,6 +70,31 @@ def keystream_bits(key: bytes, bs_id: int, frame: int, slot: int, symbol: int, n
     return np.unpackbits(np.frombuffer(stream, dtype=np.uint8))[:num_bits]
 
 
+def keystream_bits_many(key: bytes, bs_id: int, frame: int, slot_symbols, num_bits: int) -> np.ndarray:
+    """:func:`keystream_bits` of several (slot, symbol) pairs of one frame, in one AES call.
+
+    CTR mode's keystream block j is AES_K(counter block + j); every symbol's stream is far
+    shorter than 2^40 blocks, so its blocks are its initial counter block with j in the block
+    field, and the counter blocks of all symbols are encrypted together (ECB over the list).
+
+    :param slot_symbols: sequence of (slot, symbol)
+    :return: p : [num_pairs, num_bits] uint8, 0/1 (row i equals keystream_bits(..., *slot_symbols[i], num_bits))
+    """
+    if len(key) not in (16, 32):
+        raise ValueError(f"Argument `key` must be 16 or 32 bytes, not {len(key)}")
+    nb = -(-num_bits // 128)
+    heads = np.array([np.frombuffer(counter_block(bs_id, frame, sl, sy)[:11], dtype=np.uint8)
+                      for sl, sy in slot_symbols], dtype=np.uint8).reshape(-1, 11)
+    blocks = np.zeros((heads.shape[0], nb, 16), dtype=np.uint8)
+    blocks[:, :, :11] = heads[:, None, :]
+    j = np.arange(nb, dtype=np.uint64)
+    for b in range(5):   # the 40-bit block counter, big-endian in bytes 11..15
+        blocks[:, :, 15 - b] = ((j >> np.uint64(8 * b)) & np.uint64(0xFF)).astype(np.uint8)[None, :]
+    enc = Cipher(algorithms.AES(key), modes.ECB()).encryptor()
+    stream = np.frombuffer(enc.update(blocks.tobytes()) + enc.finalize(), dtype=np.uint8)
+    return np.unpackbits(stream.reshape(heads.shape[0], nb * 16), axis=1)[:, :num_bits]
+
+
 def encrypted_prs_bits(key: bytes, bs_id: int, n_id_seq: int, frame: int, slot: int, symbol: int,
                        length: int) -> np.ndarray:
     """b_PRSenc = b_PRS XOR p for ``length`` PRS symbols.

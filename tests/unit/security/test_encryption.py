@@ -122,3 +122,17 @@ def test_encrypted_bits_are_balanced():
     key = bytes(range(32))
     bits = np.concatenate([encrypted_prs_bits(key, 0, 0, f, 0, 0, 1000) for f in range(20)])
     assert abs(bits.mean() - 0.5) < Z * 0.5 / np.sqrt(bits.size)
+
+
+def test_keystreams_of_a_frame_in_one_call_equal_the_per_symbol_ctr_streams():
+    """keystream_bits_many (ECB over the counter blocks) against CTR mode symbol by symbol,
+    including a stream of several blocks (5000 bits = 40 blocks)."""
+    from veriloc_rt.security.encryption import keystream_bits_many
+
+    key = bytes(range(32))
+    pairs = [(s, l) for s in (0, 7, 19) for l in (0, 5, 13)]
+    for n in (208, 5000):
+        many = keystream_bits_many(key, 4095, 2**32 - 1, pairs, n)
+        assert many.shape == (len(pairs), n)
+        for row, (s, l) in zip(many, pairs):
+            np.testing.assert_array_equal(row, keystream_bits(key, 4095, 2**32 - 1, s, l, n))
