@@ -292,13 +292,20 @@ def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, samp
     return out if out.shape[1] == num_out else np.pad(out, ((0, 0), (0, num_out - out.shape[1])))
 
 
-def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
-    """x + circular complex Gaussian noise of the given variance (a new array)."""
+def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator, major_axis: int = 0) -> np.ndarray:
+    """x + circular complex Gaussian noise of the given variance (a new array).
+
+    :param major_axis: the axis the draws run along outermost: the noise of the leading entries
+        of that axis does not depend on its length (a received grid [A, S, 14, K] with axis 1:
+        the first slots' noise is the same whether the grid has them alone or every slot)
+    """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
     if variance <= 0:
         return np.array(x, dtype=np.complex128)
-    n = rng.standard_normal(x.shape + (2,)).view(np.complex128)[..., 0]
+    shape = (x.shape[major_axis],) + tuple(np.delete(x.shape, major_axis))
+    n = rng.standard_normal(shape + (2,)).view(np.complex128)[..., 0]
+    n = np.moveaxis(n, 0, major_axis)
     n *= np.sqrt(variance / 2.0)
     n += x
     return n

@@ -184,3 +184,16 @@ def test_uplink_gain_is_the_array_centre_coefficient():
         assert up.num_ant == 1
         assert up.gains[0, 0, 0] == pytest.approx(expect, rel=1e-9)
         assert abs(amp[0].imag) < 1e-12 * abs(amp[0])
+
+
+def test_slot_major_noise_of_the_first_slots_does_not_depend_on_the_grid_length():
+    """add_noise(major_axis=1) on a grid [A, S, 14, K]: the first m slots receive exactly the
+    noise they receive in the whole grid (what lets a tag-only receiver draw m slots)."""
+    x = np.zeros((5, 10, 14, 48), dtype=complex)
+    full = add_noise(x, 2.0, np.random.default_rng(9), major_axis=1)
+    part = add_noise(x[:, :2], 2.0, np.random.default_rng(9), major_axis=1)
+    np.testing.assert_array_equal(part, full[:, :2])
+    assert np.mean(np.abs(full) ** 2) == pytest.approx(2.0, rel=0.02)   # 3.4e4 samples: 0.5 % std
+    # the default order is antenna-major: the first slots' noise then depends on S
+    assert not np.array_equal(add_noise(x[:, :2], 2.0, np.random.default_rng(9)),
+                              add_noise(x, 2.0, np.random.default_rng(9))[:, :2])

@@ -182,19 +182,25 @@ class PositioningChain:
 
     # -- stages ----------------------------------------------------------------------------
     def _receive(self, links: Links, amps: np.ndarray, sig: dict, t0: float, adv: Links | None,
-                 adv_signal: np.ndarray | None, rng: np.random.Generator):
-        """Received (grid [A, S, 14, K], IQ [A, N] or None)."""
+                 adv_signal: np.ndarray | None, rng: np.random.Generator, num_slots: int | None = None):
+        """Received (grid [A, S, 14, K], IQ [A, N] or None).
+
+        :param num_slots: frequency domain only: the grid of the first ``num_slots`` slots alone
+            (the same values as those slots of the whole grid: the noise is drawn slot-major)
+        """
         adv_amp = re_amplitude([dbm_to_watt(self.channel.adversary_power_dbm)], self.ofdm)
         fs = self.ofdm.sample_rate_hz
         if self.channel.domain == "frequency":
-            y = apply_frequency(links, sig["grids"], amps, self.ofdm, self.slots, t0)
+            m = len(self.slots) if num_slots is None else num_slots
+            slots = self.slots[:m]
+            y = apply_frequency(links, sig["grids"][:, :m], amps, self.ofdm, slots, t0)
             if adv is not None:
                 if adv_signal.ndim == 3:
-                    y = y + apply_frequency(adv, adv_signal[None], adv_amp, self.ofdm, self.slots, t0)
+                    y = y + apply_frequency(adv, adv_signal[None, :m], adv_amp, self.ofdm, slots, t0)
                 else:
                     iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples,
                                     self.decimation)
-                    y = y + self.ofdm.demodulate(iq, self.slots)
+                    y = y + self.ofdm.demodulate(iq, self.slots)[:, :m]
             return self._add_noise(y, rng), None
         iq = apply_time(links, sig["waveform"], amps, fs, t0, self.buffer_samples, self.decimation)
         if adv is not None:
@@ -206,8 +212,9 @@ class PositioningChain:
     def _add_noise(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The received signal plus thermal noise: a grid [A, S, 14, K] in the frequency domain,
         IQ [A, N] in the time domain (the one place noise enters the downlink; a benchmark can
-        override it to feed two fidelities the same noise realisation)."""
-        return add_noise(x, self.noise_var, rng)
+        override it to feed two fidelities the same noise realisation). A grid's noise is drawn
+        slot by slot, so its first slots get the same noise whatever the number of slots."""
+        return add_noise(x, self.noise_var, rng, major_axis=1 if x.ndim == 4 else 0)
 
     def _tags(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
               replica: np.ndarray | None) -> bool:
@@ -269,9 +276,11 @@ class PositioningChain:
         :param estimates: another chain's result for the same point, serving set, PRS and noise
             stream, differing only in its tags (the HMAC-tagged chain's for a DS-tagged one): its
             timing, fix, AoA and uplink are kept and only this chain's grid and tags are computed
-            (the MRC weights of the tag check are its peaks). Exact when both chains receive the
-            same PRS REs, as they do through the frequency-domain channel unless the adversary's
-            signal depends on the tags (a relay's gain control sees them: ~1e-3 on its gain)
+            (the MRC weights of the tag check are its peaks), and in the frequency domain only
+            the slots up to the last of ``receiver.tag_slots`` are received. Exact when both
+            chains receive the same PRS REs, as they do through the frequency-domain channel
+            unless the adversary's signal depends on the tags (a relay's gain control sees them:
+            ~1e-3 on its gain)
         """
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
@@ -296,7 +305,11 @@ class PositioningChain:
                                       self.channel.power_control)
         amps = re_amplitude(powers * self.bs_power_factor, self.ofdm)
         t0 = timing_reference(links, self.channel.timing_guard_s)
-        grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng)
+        # with another chain's timing only the tags are left to do: the grid of the slots up to
+        # the last checked one is enough (frequency domain)
+        tag_only = estimates is not None and self.channel.domain == "frequency"
+        m = max(self.receiver.tag_slots) + 1 if tag_only else None
+        grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng, m)
         clock("channel")
         if estimates is not None:
             if len(estimates.toa_estimates) != self.num_bs:
