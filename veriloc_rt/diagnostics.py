@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .channel import add_noise
 from .config import Config
 from .constants import SPEED_OF_LIGHT
 from .nr.ofdm import SYMBOLS_PER_SLOT
@@ -88,9 +89,8 @@ def _grid_noise(x: np.ndarray, variance: float, rng: np.random.Generator, ofdm, 
     """x plus noise drawn as a per-RE grid, slot-major (the first S slots' draws do not depend on
     how many follow): added to a grid [A, S, 14, K], or OFDM-modulated (orthonormal: each FFT
     window gets the grid back exactly; CP and tail get no noise) into IQ [A, N]."""
-    a = x.shape[0]
-    u = rng.standard_normal((len(slots), a, SYMBOLS_PER_SLOT, ofdm.num_subcarriers, 2)).view(np.complex128)[..., 0]
-    g = np.moveaxis(u, 0, 1) * np.sqrt(variance / 2.0)                 # [A, S, 14, K]
+    shape = (x.shape[0], len(slots), SYMBOLS_PER_SLOT, ofdm.num_subcarriers)
+    g = add_noise(np.zeros(shape, dtype=np.complex128), variance, rng, major_axis=1)   # [A, S, 14, K]
     if x.ndim == 4:
         return x + g
     iq = ofdm.modulate(g, slots)
