@@ -115,6 +115,7 @@ def _shared_noise_chain():
 
     class SharedNoiseChain(PositioningChain):
         dl_rng: np.random.Generator | None = None
+        keep_benign = False   # the noise comes from dl_rng, not from the key's generator
 
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)

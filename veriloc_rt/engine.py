@@ -227,6 +227,7 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
                    progress: Progress | None, timing: dict) -> tuple[dict, dict]:
     """Every scenario point by point: chains from ``pool`` (None: here), detectors here."""
     from .report.results import ResultsWriter, read_rows, results_path, scenario_metrics
+    from .run_points import LocalChains
 
     n = runner.geo.num_points
     rows: dict = {}
@@ -245,8 +246,8 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
         writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
         prev = done[-1].index if done else None
         todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
-        ahead = pool.imap(scenario, todo) if pool is not None and todo else iter(())
-        todo_set = set(todo) if pool is not None else set()
+        ahead = (pool or LocalChains(runner)).imap(scenario, todo)
+        todo_set = set(todo)
         try:
             for i in range(len(done), n):
                 if i in todo_set:

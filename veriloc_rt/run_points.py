@@ -50,7 +50,7 @@ from .run_adversary import AdversarySignal
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PointRow", "ScenarioRunner", "DETECTORS", "OUTCOMES", "outcome_of"]
+__all__ = ["PointRow", "ScenarioRunner", "LocalChains", "DETECTORS", "OUTCOMES", "outcome_of"]
 
 DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
 OUTCOMES = ("success", "large_error", "service_failure")
@@ -168,11 +168,23 @@ class ScenarioRunner:
         return any(self._ck(k, scenario, i) not in self._benign for k, _, _ in self._keys())
 
     def compute_chains(self, scenario: str, i: int) -> dict:
-        """Every chain result point ``i`` of ``scenario`` needs, by cache key (for workers)."""
+        """Every chain result point ``i`` of ``scenario`` needs, by cache key (for workers);
+        in the attack window also those of the run's later attack scenarios, computed here
+        together: they share the serving BSs' signal, noise and uplink, which each chain keeps
+        from one call to the next (:meth:`PositioningChain._benign`). The engine holds them
+        until their scenario comes."""
         out: dict = {}
-        for k, c, m in self._keys():   # 'standard' first: the DS chain reuses its timing
-            std = out.get(self._ck("standard", scenario, i)) if k == "ds" else None
-            out[self._ck(k, scenario, i)] = self._chain(k, c, scenario, m, i, std)
+        scenarios = [scenario]
+        if self.window[i] and scenario in self.cfg.run.scenarios:
+            later = self.cfg.run.scenarios[self.cfg.run.scenarios.index(scenario) + 1:]
+            scenarios += [s for s in later if s != "none"]
+        for sc in scenarios:
+            for k, c, m in self._keys():   # 'standard' first: the DS chain reuses its timing
+                ck = self._ck(k, sc, i)
+                if ck in out or (sc != scenario and ck in self._benign):
+                    continue
+                std = out.get(self._ck("standard", sc, i)) if k == "ds" else None
+                out[ck] = self._chain(k, c, sc, m, i, std)
         return out
 
     def store_chains(self, results: dict) -> None:
@@ -266,6 +278,23 @@ def _chains_of(runner: ScenarioRunner, scenario: str, i: int) -> tuple[int, dict
 def _work(task: tuple[str, int]) -> tuple[int, dict, dict]:
     scenario, i = task
     return _chains_of(_WORKER, scenario, i)
+
+
+class LocalChains:
+    """The chains computed in this process, ahead of the detectors like a pool's (so a point's
+    attack scenarios share its serving BSs' signal here too: :meth:`ScenarioRunner.compute_chains`)."""
+
+    def __init__(self, runner: ScenarioRunner):
+        self.runner = runner
+
+    def imap(self, scenario: str, points: list[int]):
+        for i in points:   # the runner's own timing counts them
+            yield i, self.runner.compute_chains(scenario, i), {}
+
+    def close(self) -> None:
+        pass
+
+    terminate = close
 
 
 class ForkPool:

@@ -250,3 +250,48 @@ def test_noise_density_and_the_channel_bandwidth_convention(domain, rate, bandwi
     assert np.mean(np.abs(ch.noise) ** 2) == pytest.approx(expected, rel=0.02)
     # the BSs' uplink receivers (F = 5 dB) follow the same convention
     assert ch.uplink.noise_var == pytest.approx(1.380649e-23 * 290.0 * 10 ** 0.5 * rate * scale, rel=1e-6)
+
+
+class _CountingChain(PositioningChain):
+    """Counts the draws of downlink noise."""
+
+    draws = 0
+
+    def _add_noise(self, x, rng):
+        self.draws += 1
+        return super()._add_noise(x, rng)
+
+
+@pytest.mark.parametrize("domain", ["frequency", "time"])
+def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(domain):
+    """A run evaluates a point's scenarios together: the attack call reuses the benign call's
+    serving-BS signal plus noise and uplink fix (PositioningChain._benign). Second method: a fresh
+    chain computing the attack call alone, from the same generator state. Exact equality (the
+    same operations on the same numbers), the caller's generator left in the same state, and
+    one noise draw for the two calls."""
+    ue = np.array([10.0, 20.0, 1.5])
+    cir = exact_cir(ue)
+    adv = exact_cir(ue + np.array([5.0, 0.0, 0.0]))
+    adv = CIR(**{k: getattr(adv, k)[:, :1] for k in ("delays", "gains", "aoa_az", "aoa_zen", "aod_az",
+                                                      "aod_zen", "doppler", "interactions", "valid",
+                                                      "tx_index", "tx_pos", "los")},
+              rx_pos=adv.rx_pos, carrier_frequency=FC)
+    keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
+    args = (NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme="hmac"),
+            ChannelConfig(domain=domain), ReceiverConfig(), ArrayConfig(), FC, keys)
+    kept, fresh = _CountingChain(*args), _CountingChain(*args)
+    spoof = 1e-3 * kept.frame_signals((0, 1, 2), 0)["replicas"][1]   # a weak replay of BS 1
+    benign = kept(cir, 0, np.random.default_rng(7))
+    rng_k, rng_f = np.random.default_rng(7), np.random.default_rng(7)
+    a = kept(cir, 0, rng_k, adv_ue=adv, adversary_signal=spoof)
+    b = fresh(cir, 0, rng_f, adv_ue=adv, adversary_signal=spoof)
+    assert kept.draws == 1 and fresh.draws == 1
+    assert rng_k.bit_generator.state == rng_f.bit_generator.state
+    for f in ("toa_s", "peak_snr_db", "doppler_hz", "tags_valid", "detected"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    np.testing.assert_array_equal(a.uplink.toa_s, b.uplink.toa_s)
+    assert a.uplink is benign.uplink
+    assert not np.array_equal(a.peak_snr_db, benign.peak_snr_db)   # the attack did arrive
+    # another generator state is another noise draw
+    kept(cir, 0, np.random.default_rng(8), adv_ue=adv, adversary_signal=spoof)
+    assert kept.draws == 2

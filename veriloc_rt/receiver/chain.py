@@ -116,6 +116,11 @@ class PositioningChain:
         a dummy identity through a link without paths, i.e. nothing arrives.
     """
 
+    #: keep the last serving BSs' signal plus noise and uplink fix for the next call with the
+    #: same point and noise generator state (:meth:`_benign`); off where the noise comes from
+    #: elsewhere
+    keep_benign = True
+
     def __init__(self, nr: NRConfig, security: SecurityConfig, channel: ChannelConfig,
                  receiver: ReceiverConfig, ue_array: ArrayConfig, carrier_frequency_hz: float,
                  keys: Mapping[int, BSKeys] | None = None):
@@ -146,6 +151,9 @@ class PositioningChain:
         self.busy_symbols = tuple(int(l) for l in nr.prs_symbols)
         self.decimation = max(1, min(channel.time_decimation, self.ofdm.fft_size // nr.min_fft_size))
         self._frame: tuple | None = None
+        #: the last serving BSs' signal plus noise and the last uplink fix (see :meth:`_benign`)
+        self._benign_cache: tuple | None = None
+        self._uplink_cache: tuple | None = None
         #: seconds spent per stage over every call (a run reports them; reading is optional)
         self.stage_s = dict.fromkeys(STAGES, 0.0)
 
@@ -182,32 +190,71 @@ class PositioningChain:
 
     # -- stages ----------------------------------------------------------------------------
     def _receive(self, links: Links, amps: np.ndarray, sig: dict, t0: float, adv: Links | None,
-                 adv_signal: np.ndarray | None, rng: np.random.Generator, num_slots: int | None = None):
-        """Received (grid [A, S, 14, K], IQ [A, N] or None).
+                 adv_signal: np.ndarray | None, rng: np.random.Generator, num_slots: int | None = None,
+                 key: tuple | None = None):
+        """Received (grid [A, S, 14, K], IQ [A, N] or None): the serving BSs' signal plus noise
+        (:meth:`_benign`), plus the adversary's signal.
 
         :param num_slots: frequency domain only: the grid of the first ``num_slots`` slots alone
             (the same values as those slots of the whole grid: the noise is drawn slot-major)
+        :param key: identifies the serving BSs' signal and noise (see :meth:`_benign`)
         """
         adv_amp = re_amplitude([dbm_to_watt(self.channel.adversary_power_dbm)], self.ofdm)
         fs = self.ofdm.sample_rate_hz
+        m = len(self.slots) if num_slots is None else num_slots
+        base = self._benign(links, amps, sig, t0, rng, m, key)
         if self.channel.domain == "frequency":
-            m = len(self.slots) if num_slots is None else num_slots
+            if adv is None:
+                return base, None
             slots = self.slots[:m]
-            y = apply_frequency(links, sig["grids"][:, :m], amps, self.ofdm, slots, t0)
-            if adv is not None:
-                if adv_signal.ndim == 3:
-                    y = y + apply_frequency(adv, adv_signal[None, :m], adv_amp, self.ofdm, slots, t0)
-                else:
-                    iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples,
-                                    self.decimation)
-                    y = y + self.ofdm.demodulate(iq, self.slots)[:, :m]
-            return self._add_noise(y, rng), None
-        iq = apply_time(links, sig["waveform"], amps, fs, t0, self.buffer_samples, self.decimation)
+            if adv_signal.ndim == 3:
+                return base + apply_frequency(adv, adv_signal[None, :m], adv_amp, self.ofdm, slots, t0), None
+            iq = apply_time(adv, adv_signal[None], adv_amp, fs, t0, self.frame_samples, self.decimation)
+            return base + self.ofdm.demodulate(iq, self.slots)[:, :m], None
+        iq = base
         if adv is not None:
             wave = self.ofdm.modulate(adv_signal, self.slots) if adv_signal.ndim == 3 else adv_signal
             iq = iq + apply_time(adv, wave[None], adv_amp, fs, t0, self.buffer_samples, self.decimation)
-        iq = self._add_noise(iq, rng)
         return self.ofdm.demodulate(iq, self.slots), iq
+
+    def _benign(self, links: Links, amps: np.ndarray, sig: dict, t0: float,
+                rng: np.random.Generator, num_slots: int, key: tuple | None) -> np.ndarray:
+        """The serving BSs' signal plus noise (read-only): grid [A, num_slots, 14, K] or IQ [A, N].
+
+        The adversary adds to it and does not change it, so a run evaluating several scenarios at
+        one point computes it once: the last one is kept under ``key`` (point, frame, replica
+        mode, slots, the CIR object and ``rng``'s state on entry; None: not kept), and a call with
+        the same key gets it back with ``rng`` moved past the noise draws, as if drawn again.
+        """
+        key = None if key is None or not self.keep_benign else key + (num_slots, rng.bit_generator.state)
+        c = self._benign_cache
+        if key is not None and c is not None and c[0][1:] == key[1:] and c[0][0] is key[0]:
+            rng.bit_generator.state = c[2]
+            return c[1]
+        if self.channel.domain == "frequency":
+            x = apply_frequency(links, sig["grids"][:, :num_slots], amps, self.ofdm,
+                                self.slots[:num_slots], t0)
+        else:
+            x = apply_time(links, sig["waveform"], amps, self.ofdm.sample_rate_hz, t0,
+                           self.buffer_samples, self.decimation)
+        x = self._add_noise(x, rng)
+        x.flags.writeable = False
+        if key is not None:
+            self._benign_cache = (key, x, rng.bit_generator.state)
+        return x
+
+    def _uplink(self, bs_ue: CIR, point: int, bs_pos: np.ndarray, ue_h: float,
+                rng: np.random.Generator) -> UplinkResult:
+        """The uplink fix (the adversary does not touch it: the last one is kept like
+        :meth:`_benign`'s grid, under the CIR, the point and ``rng``'s state on entry)."""
+        key = (bs_ue, point, rng.bit_generator.state)
+        c = self._uplink_cache
+        if self.keep_benign and c is not None and c[0][0] is bs_ue and c[0][1:] == key[1:]:
+            rng.bit_generator.state = c[2]
+            return c[1]
+        up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)
+        self._uplink_cache = (key, up, rng.bit_generator.state)
+        return up
 
     def _add_noise(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The received signal plus thermal noise: a grid [A, S, 14, K] in the frequency domain,
@@ -309,7 +356,8 @@ class PositioningChain:
         # the last checked one is enough (frequency domain)
         tag_only = estimates is not None and self.channel.domain == "frequency"
         m = max(self.receiver.tag_slots) + 1 if tag_only else None
-        grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng, m)
+        grid, iq = self._receive(links, amps, sig, t0, adv, adversary_signal, rng, m,
+                                 (bs_ue, point, frame, encrypted_replica))
         clock("channel")
         if estimates is not None:
             if len(estimates.toa_estimates) != self.num_bs:
@@ -361,7 +409,7 @@ class PositioningChain:
         clock("tags")
         up = None
         if self.uplink is not None:
-            up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)
+            up = self._uplink(bs_ue, point, bs_pos, ue_h, rng)
         clock("uplink")
         log.debug("point %d: detected %s, fix %s", point, det, fix.status)
         return ChainResult(detected=det, toa_s=toa, rstd_s=rstd,
