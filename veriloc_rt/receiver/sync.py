@@ -52,8 +52,15 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
         raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
                          "must be [A, S, 14, K] and [S, 14, K]")
     s_idx, l_idx = block_index(replica)
-    rep = replica[s_idx, l_idx]                                   # [B, K]
-    spectra = rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
+    n_s, l0 = int(s_idx.max()) + 1, int(l_idx.min())
+    n_l = int(l_idx.max()) + 1 - l0
+    if s_idx.size == n_s * n_l:   # every slot's symbols l0..: slices, no gathers
+        rep = replica[:n_s, l0:l0 + n_l].reshape(-1, replica.shape[-1])
+        spectra = (rx_grid[:, :n_s, l0:l0 + n_l] * np.conj(replica[None, :n_s, l0:l0 + n_l])).reshape(
+            rx_grid.shape[0], -1, replica.shape[-1])
+    else:
+        rep = replica[s_idx, l_idx]                                   # [B, K]
+        spectra = rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,
                         block_times=_block_times(ofdm, slots, s_idx, l_idx),

@@ -204,3 +204,36 @@ def test_comb_support_sums_only_the_occupied_bins_and_matches_the_dense_product(
     # a replica on every bin (the time-domain front end's) has no comb to exploit
     full = dataclasses.replace(cs, ref_power=np.ones_like(cs.ref_power))
     assert full.support is None
+
+
+@pytest.mark.parametrize("contiguous", [True, False])
+def test_profile_power_equals_the_explicit_dft(contiguous):
+    """ToAEstimator._power: sum_a |sum_k g_ak e^{j 2 pi k l / n}|^2 on the searched lags (one
+    wrapped run of the FFT's output, or any lags through the gather), against the DFT written
+    out (second method; tolerance: double-precision FFT rounding, 1e-9 relative)."""
+    rng = np.random.default_rng(5)
+    pos = np.arange(40) if contiguous else np.sort(rng.choice(64, 40, replace=False))
+    idx = pos + 7                           # bins need not start at 0: a common phase ramp
+    g = rng.standard_normal((3, 4, 40)) + 1j * rng.standard_normal((3, 4, 40))
+    n = 256
+    lags = np.arange(-9, 120) if contiguous else np.array([-9, -2, 0, 5, 77, 130])
+    got = ToAEstimator._power(g, idx, lags, n)
+    dft = np.exp(2j * np.pi * np.outer(lags, pos) / n)                       # [L, K]
+    want = np.sum(np.abs(np.einsum("lk,vak->val", dft, g)) ** 2, axis=1)     # [V, L]
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * want.max())
+
+
+def test_frequency_cross_spectra_are_the_per_re_products_in_block_order():
+    """Block b = (slot, symbol) in row-major order of the replica's non-zero symbols; S = Y X*
+    per RE (written out RE by RE: second method; exact)."""
+    nr, tx = _setup(slots=2)
+    slots = range(2)
+    rng = np.random.default_rng(2)
+    rep = tx.replica(0, 0, slots)
+    y = add_noise(np.zeros((2,) + rep.shape), 1.0, rng)
+    for r in (rep, np.where(np.arange(14)[None, :, None] == 3, 0, rep)):   # a rectangle, a gap
+        cs = frequency_cross_spectra(y, r, tx.ofdm, slots)
+        blocks = [(s, l) for s in range(2) for l in range(14) if np.any(r[s, l] != 0)]
+        want = np.stack([y[:, s, l] * np.conj(r[s, l]) for s, l in blocks], axis=1)
+        np.testing.assert_array_equal(cs.spectra, want)
+        np.testing.assert_array_equal(cs.ref_power, np.abs(np.stack([r[s, l] for s, l in blocks])) ** 2)
