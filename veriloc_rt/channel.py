@@ -39,7 +39,7 @@ from .nr.ofdm import OFDM
 from .propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
-           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupied_groups",
            "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
@@ -215,9 +215,33 @@ def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: f
     return gd @ e_f[:, None]                                                     # [L, A, T, K]
 
 
+def occupied_groups(grid: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """The symbols of a grid grouped by the subcarriers they occupy (non-zero REs).
+
+    :param grid: [T, K] complex
+    :returns: list of (symbol indices, subcarrier indices) covering every non-zero RE, or None
+        when more than half the REs are occupied (a dense grid: no gain from the groups)
+    """
+    occ = grid != 0
+    if 2 * np.count_nonzero(occ) > occ.size:
+        return None
+    used = np.flatnonzero(occ.any(axis=1))
+    if used.size == 0:
+        return []
+    packed = np.ascontiguousarray(np.packbits(occ[used], axis=1))
+    rows = packed.view(np.dtype((np.void, packed.shape[1])))[:, 0]
+    _, first, inv = np.unique(rows, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    return [(used[inv == g], np.flatnonzero(occ[used[i]])) for g, i in enumerate(first)]
+
+
 def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofdm: OFDM, slots,
                     t0: float) -> np.ndarray:
     """Received resource grid, noiseless: sum over links of a_l H_l X_l.
+
+    H_l is evaluated only on the REs its grid occupies (:func:`occupied_groups`; a comb-6 PRS
+    with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
+    H_l X_l = 0.
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
@@ -227,12 +251,23 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     if grids.shape[0] != links.num_links:
         raise ValueError(f"Argument `grids` has {grids.shape[0]} links, `links` {links.num_links}")
     t = symbol_times(ofdm, slots, t0)
-    h = frequency_response(links, subcarrier_frequencies(ofdm), t.ravel(), t0)
-    h = h.reshape(links.num_links, links.num_ant, *t.shape, ofdm.num_subcarriers)
-    out = np.zeros(h.shape[1:], dtype=np.complex128)
+    f = subcarrier_frequencies(ofdm)
+    k_n = ofdm.num_subcarriers
+    out = np.zeros((links.num_ant, t.size, k_n), dtype=np.complex128)
+    flat_t = t.ravel()
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
-        out += amp * h[li] * grids[li][None]
-    return out
+        x = grids[li].reshape(t.size, k_n)
+        one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
+                    links.valid[li:li + 1])
+        groups = occupied_groups(x)
+        if groups is None:
+            out += amp * frequency_response(one, f, flat_t, t0)[0] * x[None]
+            continue
+        for sym, sc in groups:
+            h = frequency_response(one, f[sc], flat_t[sym], t0)[0]               # [A, Tg, Kg]
+            ix = (sym[:, None], sc[None, :])
+            out[:, ix[0], ix[1]] += amp * h * x[ix][None]
+    return out.reshape(links.num_ant, *t.shape, k_n)
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,

@@ -197,3 +197,39 @@ def test_slot_major_noise_of_the_first_slots_does_not_depend_on_the_grid_length(
     # the default order is antenna-major: the first slots' noise then depends on S
     assert not np.array_equal(add_noise(x[:, :2], 2.0, np.random.default_rng(9)),
                               add_noise(x, 2.0, np.random.default_rng(9))[:, :2])
+
+
+@pytest.mark.parametrize("tags", ["hmac", "none"])
+def test_apply_frequency_on_occupied_res_equals_the_full_response(tags):
+    """apply_frequency evaluates H only on each grid's occupied REs (occupied_groups: 6 comb
+    groups for a comb-6 PRS); second method: sum_l a_l H_l X_l with frequency_response on every
+    RE of the grid (exact: the same products; rtol 1e-12 for summation order). A dense grid
+    (noise on every RE, like a jammer's) takes the full path."""
+    from veriloc_rt.security.keys import simulated_keys
+
+    nr = NRConfig(slots_per_frame=2)
+    ofdm = OFDM(nr)
+    slots = range(2)
+    keys = None if tags == "none" else simulated_keys((1, 2, 3), np.random.default_rng(0))
+    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme=tags), (1, 2, 3), keys)
+    rng = np.random.default_rng(4)
+    grids = tx(0, slots)
+    dense = add_noise(np.zeros((1,) + grids.shape[1:]), 1.0, rng)
+    grids = np.concatenate([grids, dense])
+    links = Links(1e-6 + rng.uniform(0, 2e-6, (4, 5)), rng.standard_normal((4, 3, 5)) + 1j * rng.standard_normal((4, 3, 5)),
+                  rng.uniform(-150, 150, (4, 5)), rng.uniform(size=(4, 5)) < 0.8)
+    links = Links(links.delays, links.gains * links.valid[:, None, :], links.doppler, links.valid)
+    amps = np.array([1.0, 0.5, 2.0, 0.1])
+    from veriloc_rt.channel import occupied_groups, subcarrier_frequencies, symbol_times
+
+    x0 = grids[0].reshape(-1, ofdm.num_subcarriers)
+    cover = np.zeros(x0.shape, dtype=int)
+    for sym, sc in occupied_groups(x0):
+        cover[sym[:, None], sc[None, :]] += 1
+    np.testing.assert_array_equal(cover, x0 != 0)          # every occupied RE, once
+    assert occupied_groups(grids[3].reshape(-1, ofdm.num_subcarriers)) is None
+    t = symbol_times(ofdm, slots, 0.9e-6)
+    h = frequency_response(links, subcarrier_frequencies(ofdm), t.ravel(), 0.9e-6)
+    want = np.einsum("l,latk,ltk->atk", amps, h, grids.reshape(4, t.size, -1)).reshape(3, 2, 14, -1)
+    got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())

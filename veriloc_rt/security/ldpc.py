@@ -115,7 +115,8 @@ class NRLDPC:
         self.n = cols * self.z
         hs = self.h[:, :self.k_full].toarray()
         hp_inv = _gf2_inverse(self.h[:, self.k_full:].toarray())
-        self._encode_matrix = (hp_inv.astype(np.int64) @ hs) % 2  # parity = M s mod 2
+        # parity = M s mod 2, as a float64 product (BLAS; exact: the sums are integers <= K)
+        self._encode_matrix = ((hp_inv.astype(np.int64) @ hs) % 2).astype(np.float64)
         self._decoder = BpDecoder(
             self.h, error_channel=np.full(self.n, 0.1), max_iter=iterations,
             bp_method="product_sum" if method == "sum_product" else "minimum_sum",
@@ -135,7 +136,7 @@ class NRLDPC:
         bits = np.asarray(bits, dtype=np.uint8)
         if bits.shape[-1] != self.k:
             raise ValueError(f"Argument `bits` must have {self.k} bits on its last axis, not {bits.shape[-1]}")
-        s = np.zeros(bits.shape[:-1] + (self.k_full,), dtype=np.int64)
+        s = np.zeros(bits.shape[:-1] + (self.k_full,), dtype=np.float64)
         s[..., :self.k] = bits
         parity = (s @ self._encode_matrix.T) % 2
         return np.concatenate([s, parity], axis=-1).astype(np.uint8)
