@@ -397,7 +397,7 @@ class PositioningChain:
                 snaps = e.snapshots
             else:
                 rot = np.exp(-2j * np.pi * e.doppler_hz * (cs.block_times - cs.block_times.mean()))
-                x = cs.spectra * rot[None, :, None]
+                x = cs.dense * rot[None, :, None]
                 snaps = x[:, cs.ref_power > 0]
             est = self.aoa(snaps, float(zen[b]))
             aoas.append(est)

@@ -20,7 +20,7 @@ import scipy.fft as sfft
 
 from ..channel import subcarrier_frequencies, symbol_layout
 from ..nr.ofdm import OFDM
-from .toa import CrossSpectra, spatial_dof
+from .toa import CrossSpectra, occupancy_groups, spatial_dof
 
 __all__ = ["frequency_cross_spectra", "time_cross_spectra", "noise_variance", "block_index"]
 
@@ -42,7 +42,8 @@ def _block_times(ofdm: OFDM, slots, s_idx: np.ndarray, l_idx: np.ndarray) -> np.
 
 
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots) -> CrossSpectra:
-    """Per-RE cross-spectra of a received grid with a replica grid.
+    """Per-RE cross-spectra of a received grid with a replica grid, computed on the replica's
+    REs only when it leaves some empty (``CrossSpectra.parts``; a comb-6 PRS: 1/6 of them).
 
     :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
     :param replica: [num_slots, 14, num_subcarriers] complex (0 off the replica's REs)
@@ -52,20 +53,19 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
         raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
                          "must be [A, S, 14, K] and [S, 14, K]")
     s_idx, l_idx = block_index(replica)
-    n_s, l0 = int(s_idx.max()) + 1, int(l_idx.min())
-    n_l = int(l_idx.max()) + 1 - l0
-    if s_idx.size == n_s * n_l:   # every slot's symbols l0..: slices, no gathers
-        rep = replica[:n_s, l0:l0 + n_l].reshape(-1, replica.shape[-1])
-        spectra = (rx_grid[:, :n_s, l0:l0 + n_l] * np.conj(replica[None, :n_s, l0:l0 + n_l])).reshape(
-            rx_grid.shape[0], -1, replica.shape[-1])
-    else:
-        rep = replica[s_idx, l_idx]                                   # [B, K]
-        spectra = rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
+    rep = replica[s_idx, l_idx]                                   # [B, K]
+    groups = occupancy_groups(rep != 0)
+    if groups is None:
+        parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
+    else:   # only the replica's REs: S = Y X* is zero elsewhere
+        spectra = None
+        parts = tuple((b, k, rx_grid[:, s_idx[b][:, None], l_idx[b][:, None], k[None, :]]
+                       * np.conj(rep[b[:, None], k[None, :]])[None]) for b, k in groups)
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,
                         block_times=_block_times(ofdm, slots, s_idx, l_idx),
                         ref_power=np.abs(rep) ** 2,
-                        band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz)
+                        band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz, parts=parts)
 
 
 def time_cross_spectra(rx_iq: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots, guard_s: float,

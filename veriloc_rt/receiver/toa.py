@@ -43,43 +43,91 @@ from ..channel_config import ReceiverConfig
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
 
 
+def occupancy_groups(occ: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """Rows of a boolean matrix grouped by their pattern: a list of (row indices, column
+    indices of the True entries), rows without one left out; None when every entry is True."""
+    if occ.all():
+        return None
+    rows: dict[bytes, list[int]] = {}
+    for b, row in enumerate(np.packbits(occ, axis=1)):
+        rows.setdefault(row.tobytes(), []).append(b)
+    return [(np.array(bl), np.flatnonzero(occ[bl[0]])) for bl in rows.values() if occ[bl[0]].any()]
+
+
 @dataclass(frozen=True, eq=False)
 class CrossSpectra:
     """Per-block, per-antenna cross-spectra of a received signal with one replica.
 
-    spectra : [num_ant, num_blocks, num_bins] complex128, S_abk (c_ab(tau) = sum_k S_abk e^{j2pi f_k tau})
+    spectra : [num_ant, num_blocks, num_bins] complex128, S_abk (c_ab(tau) = sum_k S_abk
+        e^{j2pi f_k tau}); None when given by ``parts``
     freqs : [num_bins] float64, Hz, integer multiples of ``bin_spacing_hz``
     bin_spacing_hz : float, Hz (the profile is periodic in tau with period 1 / bin_spacing_hz)
     block_times : [num_blocks] float64, s, centre of each block (any common origin)
     ref_power : [num_blocks, num_bins] float64, |X_bk|^2 scaled so that white noise of
         variance sigma^2 per RE gives var c_ab(tau) = sigma^2 sum_k w_k^2 ref_power[b, k]
     band_hz : float, Hz, occupied bandwidth (for the frequency window)
+    parts : tuple of (blocks, bins, S[A, len(blocks), len(bins)]) or None: the spectra on the
+        replica's occupied bins only (``ref_power > 0``; S = Y X* is zero elsewhere), the
+        blocks grouped by the bins they occupy (a comb-6 PRS: 6 groups of 1/6 of the bins)
     """
 
-    spectra: np.ndarray
+    spectra: np.ndarray | None
     freqs: np.ndarray
     bin_spacing_hz: float
     block_times: np.ndarray
     ref_power: np.ndarray
     band_hz: float
+    parts: tuple | None = None
+
+    def __post_init__(self) -> None:
+        if self.spectra is None and self.parts is None:
+            raise ValueError("CrossSpectra needs `spectra` or `parts`")
 
     @property
     def num_ant(self) -> int:
-        return self.spectra.shape[0]
+        return (self.spectra if self.spectra is not None else self.parts[0][2]).shape[0]
 
     @cached_property
-    def support(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
-        """The blocks grouped by the bins their replica occupies (``ref_power > 0``): a list
-        of (block indices, bin indices), or None when every block occupies every bin. Off its
-        replica's bins a block's spectrum is zero (S = Y X*), so sums over blocks and bins need
-        only these: for a comb-6 PRS, 6 groups of 1/6 of the bins."""
-        occ = self.ref_power > 0
-        if occ.all():
+    def dense(self) -> np.ndarray:
+        """[num_ant, num_blocks, num_bins] complex128, the spectra with their zeros."""
+        if self.spectra is not None:
+            return self.spectra
+        out = np.zeros((self.num_ant,) + self.ref_power.shape, dtype=np.complex128)
+        for blocks, bins, part in self.parts:
+            out[:, blocks[:, None], bins[None, :]] = part
+        return out
+
+    @cached_property
+    def occupied(self) -> tuple | None:
+        """``parts``, or the dense spectra's occupied entries in the same form (None when every
+        block occupies every bin: the dense spectra are all there is)."""
+        if self.parts is not None:
+            return self.parts
+        groups = occupancy_groups(self.ref_power > 0)
+        if groups is None:
             return None
-        rows: dict[bytes, list[int]] = {}
-        for b, row in enumerate(np.packbits(occ, axis=1)):
-            rows.setdefault(row.tobytes(), []).append(b)
-        return [(np.array(bl), np.flatnonzero(occ[bl[0]])) for bl in rows.values()]
+        return tuple((b, k, self.spectra[:, b[:, None], k[None, :]]) for b, k in groups)
+
+    def combine(self, weights: np.ndarray) -> np.ndarray:
+        """sum_b w_b S_abk: [B] -> [A, K] complex128."""
+        occ = self.occupied
+        if occ is None:
+            return (weights[None, None, :] @ self.spectra)[:, 0, :]
+        out = np.zeros((self.num_ant, self.freqs.size), dtype=np.complex128)
+        for blocks, bins, part in occ:
+            out[:, bins] += (weights[blocks][None, None, :] @ part)[:, 0, :]
+        return out
+
+    def at_delay(self, tau: float) -> np.ndarray:
+        """Per-block correlation c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128."""
+        e = np.exp(2j * np.pi * self.freqs * tau)
+        occ = self.occupied
+        if occ is None:
+            return self.spectra @ e
+        out = np.zeros((self.num_ant, self.ref_power.shape[0]), dtype=np.complex128)
+        for blocks, bins, part in occ:
+            out[:, blocks] = part @ e[bins]
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,11 +175,6 @@ def _parabola(ym: float, y0: float, yp: float) -> float:
     if den >= 0 or not np.isfinite(den):
         return 0.0
     return float(np.clip(0.5 * (ym - yp) / den, -1.0, 1.0))
-
-
-def _combine(rot: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """sum_b rot_b S_abk: [B], [A, B, K] -> [A, K]."""
-    return (rot[None, None, :] @ s)[:, 0, :]
 
 
 class ToAEstimator:
@@ -192,25 +235,24 @@ class ToAEstimator:
         return out
 
     @staticmethod
-    def _doppler_spectra(s: np.ndarray, nus: np.ndarray, tc: np.ndarray, support=None,
-                         parts=None) -> np.ndarray:
+    def _doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
         """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
         Single precision: the maps built from it only rank hypotheses and cells against
         thresholds (relative error ~1e-7, far below the noise); the ToA itself is refined on
         exact double-precision evaluations. Measured 2x faster than double on the chain
         (scripts/bench_chain.py). A per-bin window w_k commutes with the sum over blocks, so
-        one product serves the windowed map too. With the spectra's ``support`` (``parts``:
-        each group's [A, blocks, bins] sub-array), one product per group of blocks sharing
-        their bins: a comb-6 PRS needs 1/6 of the dense product's work (measured 1.3 -> 0.9 ms
-        per call with the gathers; summing block by block instead was 6x slower).
+        one product serves the windowed map too. On the occupied parts (``cs.occupied``), one
+        product per group of blocks sharing their bins: a comb-6 PRS needs 1/6 of the dense
+        product's work (summing block by block instead was measured 6x slower).
         """
-        a_, b_, k_ = s.shape
         rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)   # [V, B]
-        if support is None:
-            return (rot @ s.astype(np.complex64).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
-        out = np.zeros((nus.size, a_, k_), dtype=np.complex64)
-        for (blocks, bins), part in zip(support, parts):
+        occ = cs.occupied
+        if occ is None:
+            a_, b_, k_ = cs.spectra.shape
+            return (rot @ cs.spectra.astype(np.complex64).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
+        out = np.zeros((nus.size, cs.num_ant, cs.freqs.size), dtype=np.complex64)
+        for blocks, bins, part in occ:
             out[:, :, bins] = np.matmul(rot[None, :, blocks], part.astype(np.complex64)).transpose(1, 0, 2)
         return out
 
@@ -244,20 +286,18 @@ class ToAEstimator:
             thresholds.
         """
         cfg = self.cfg
-        s, t = cs.spectra, cs.block_times
+        t = cs.block_times
         a_n = cs.num_ant
         dof = float(2 * a_n if noise_dof is None else np.clip(noise_dof, 2.0, 2 * a_n))
         idx, lags, n_up = self._grid(cs, cfg.upsample)
         step = 1.0 / (n_up * cs.bin_spacing_hz)
         tc = t - t.mean()
-        support = cs.support
-        parts = None if support is None else [s[:, blocks[:, None], bins[None, :]] for blocks, bins in support]
         # 1. Doppler scan on the unwindowed metric (on the grid without zero padding: the
         #    straddle loss is common to every Doppler hypothesis)
         if cfg.doppler_max_hz > 0:
             nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
             idx1, lags1, n1 = self._grid(cs, 1)
-            g_nu = self._doppler_spectra(s, nus, tc, support, parts)                   # [V, A, K]
+            g_nu = self._doppler_spectra(cs, nus, tc)                                  # [V, A, K]
             metric = self._power(g_nu, idx1, lags1, n1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
@@ -267,10 +307,10 @@ class ToAEstimator:
             nu = 0.0
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
-        g = _combine(rot, s)
+        g = cs.combine(rot)
         m_rect = self._power(g, idx, lags, n_up)
         tau_pk = float(lags[int(np.argmax(m_rect))] * step)
-        x = (s @ np.exp(2j * np.pi * cs.freqs * tau_pk)) * rot                    # [A, B]
+        x = cs.at_delay(tau_pk) * rot                                              # [A, B]
         ref = np.sum(x, axis=1)
         z = np.sum(x * np.conj(ref)[:, None], axis=0)                              # [B]
         w = np.abs(z)
@@ -282,7 +322,7 @@ class ToAEstimator:
             if abs(dnu) <= cfg.doppler_step_hz:
                 nu += dnu
                 rot = np.exp(-2j * np.pi * nu * tc)
-                g = _combine(rot, s)
+                g = cs.combine(rot)
                 m_rect = self._power(g, idx, lags, n_up)
         # 3. detection against the exact noise floor
         # the floor: the thermal one from ``noise_var`` (free symbols), or, when larger, a CFAR
@@ -290,8 +330,8 @@ class ToAEstimator:
         # (a spoofer's standard PRS against an encrypted replica, a relay) is absent from the
         # free symbols but spreads over every lag of the profile like noise; its spatial
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
-        occupied = (s.reshape(a_n, -1) if parts is None else
-                    np.concatenate([q.reshape(a_n, -1) for q in parts], axis=1))
+        occupied = (cs.spectra.reshape(a_n, -1) if cs.occupied is None else
+                    np.concatenate([q.reshape(a_n, -1) for _, _, q in cs.occupied], axis=1))
         dof = min(dof, spatial_dof(occupied))
         nv = max(float(noise_var), 0.0)
         sum_ref = float(np.sum(cs.ref_power))
@@ -309,7 +349,7 @@ class ToAEstimator:
             tau = float(lags[int(np.argmax(m_rect))] * step)
             return ToAEstimate(detected=False, toa_s=float("nan"), doppler_hz=float(nu),
                                peak_snr_db=float(snr_db), peak=self._eval(g, cs.freqs, tau),
-                               snapshots=(s @ np.exp(2j * np.pi * cs.freqs * tau)) * rot, noise_var=nv)
+                               snapshots=cs.at_delay(tau) * rot, noise_var=nv)
         # 4. ToA rule
         if cfg.toa_method == "strongest":
             win = np.ones(cs.freqs.shape)
@@ -336,7 +376,7 @@ class ToAEstimator:
                 if abs(nu_fp - nu) > cfg.doppler_step_hz:   # the first path's own Doppler
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
-                    g = _combine(rot, s)
+                    g = cs.combine(rot)
                 metric = self._power(g * win, idx, lags, n_up)
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
                 i = int(np.clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
@@ -357,7 +397,7 @@ class ToAEstimator:
             tau += h * _parabola(*vals)
             h /= 4
         pk = self._eval(g, cs.freqs, tau)
-        snaps = (s @ np.exp(2j * np.pi * cs.freqs * tau)) * rot
+        snaps = cs.at_delay(tau) * rot
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db), peak=pk,
                            snapshots=snaps, noise_var=nv)

@@ -176,34 +176,37 @@ def test_hearability_threshold():
     assert not ToAEstimator(strict, GUARD)(cs, 10.0).detected
 
 
-def test_comb_support_sums_only_the_occupied_bins_and_matches_the_dense_product():
-    """CrossSpectra.support groups the blocks by the replica's comb (6 groups of N_sc / 6 bins
-    for comb 6, from TS 38.211's k' pattern over 12 symbols); the grouped Doppler spectra and
-    the spatial degrees of freedom on the occupied entries equal the dense computations (second
-    method; tolerance: single precision of the Doppler spectra, 1e-6 relative)."""
+def test_comb_parts_hold_only_the_occupied_bins_and_match_the_dense_products():
+    """frequency_cross_spectra keeps the replica's REs only (CrossSpectra.parts: the blocks
+    grouped by comb pattern, 6 groups of N_sc / 6 bins for comb 6, TS 38.211's k' pattern over
+    12 symbols). Second method: the same quantities from the dense spectra (CrossSpectra.dense
+    handed over as ``spectra``): Doppler spectra (tolerance: their single precision, 1e-6
+    relative), block combination, per-block correlation and spatial dof (double, 1e-12)."""
     nr, tx = _setup(slots=2)
     slots = range(2)
     rng = np.random.default_rng(3)
     rep = tx.replica(1, 0, slots)
     y = add_noise(np.zeros((5,) + rep.shape), 1.0, rng) + 3.0 * rep[None]
     cs = frequency_cross_spectra(y, rep, tx.ofdm, slots)
-    groups = cs.support
-    assert len(groups) == nr.comb
-    assert all(bins.size == nr.num_subcarriers // nr.comb for _, bins in groups)
-    assert sorted(np.concatenate([b for b, _ in groups])) == list(range(cs.spectra.shape[1]))
+    assert cs.spectra is None and len(cs.parts) == nr.comb
+    assert all(bins.size == nr.num_subcarriers // nr.comb for _, bins, _ in cs.parts)
+    assert sorted(np.concatenate([b for b, _, _ in cs.parts])) == list(range(cs.ref_power.shape[0]))
+    dense = dataclasses.replace(cs, spectra=cs.dense, parts=None)
+    assert len(dense.occupied) == nr.comb            # the same groups, found from ref_power
     nus = np.arange(-400.0, 401.0, 25.0)
     tc = cs.block_times - cs.block_times.mean()
-    dense = ToAEstimator._doppler_spectra(cs.spectra, nus, tc)
-    parts = [cs.spectra[:, b[:, None], k[None, :]] for b, k in groups]
-    grouped = ToAEstimator._doppler_spectra(cs.spectra, nus, tc, groups, parts)
-    np.testing.assert_allclose(grouped, dense, atol=1e-6 * np.abs(dense).max())
+    flat = dataclasses.replace(cs, spectra=cs.dense, parts=None, ref_power=np.ones_like(cs.ref_power))
+    assert flat.occupied is None                     # every bin occupied: the dense product
+    d_ref = ToAEstimator._doppler_spectra(flat, nus, tc)
+    np.testing.assert_allclose(ToAEstimator._doppler_spectra(cs, nus, tc), d_ref,
+                               atol=1e-6 * np.abs(d_ref).max())
+    w = np.exp(1j * rng.uniform(0, 2 * np.pi, tc.size))
+    np.testing.assert_allclose(cs.combine(w), flat.combine(w), rtol=1e-12, atol=1e-12 * np.abs(flat.combine(w)).max())
+    np.testing.assert_allclose(cs.at_delay(1.3e-6), flat.at_delay(1.3e-6), rtol=1e-12, atol=1e-12)
     from veriloc_rt.receiver.toa import spatial_dof
 
-    occupied = np.concatenate([q.reshape(5, -1) for q in parts], axis=1)
-    assert spatial_dof(occupied) == pytest.approx(spatial_dof(cs.spectra.reshape(5, -1)), rel=1e-12)
-    # a replica on every bin (the time-domain front end's) has no comb to exploit
-    full = dataclasses.replace(cs, ref_power=np.ones_like(cs.ref_power))
-    assert full.support is None
+    occupied = np.concatenate([q.reshape(5, -1) for _, _, q in cs.parts], axis=1)
+    assert spatial_dof(occupied) == pytest.approx(spatial_dof(cs.dense.reshape(5, -1)), rel=1e-12)
 
 
 @pytest.mark.parametrize("contiguous", [True, False])
@@ -235,5 +238,5 @@ def test_frequency_cross_spectra_are_the_per_re_products_in_block_order():
         cs = frequency_cross_spectra(y, r, tx.ofdm, slots)
         blocks = [(s, l) for s in range(2) for l in range(14) if np.any(r[s, l] != 0)]
         want = np.stack([y[:, s, l] * np.conj(r[s, l]) for s, l in blocks], axis=1)
-        np.testing.assert_array_equal(cs.spectra, want)
+        np.testing.assert_array_equal(cs.dense, want)
         np.testing.assert_array_equal(cs.ref_power, np.abs(np.stack([r[s, l] for s, l in blocks])) ** 2)
