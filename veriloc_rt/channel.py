@@ -39,7 +39,7 @@ from .nr.ofdm import OFDM
 from .propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
-           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupied_groups",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupancy_groups",
            "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
@@ -215,15 +215,15 @@ def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: f
     return gd @ e_f[:, None]                                                     # [L, A, T, K]
 
 
-def occupied_groups(grid: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
-    """The symbols of a grid grouped by the subcarriers they occupy (non-zero REs).
+def occupancy_groups(occ: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """Rows of a boolean matrix grouped by their pattern (the symbols of a grid by the
+    subcarriers they occupy, the blocks of a replica by their bins).
 
-    :param grid: [T, K] complex
-    :returns: list of (symbol indices, subcarrier indices) covering every non-zero RE, or None
-        when more than half the REs are occupied (a dense grid: no gain from the groups)
+    :param occ: [R, C] bool
+    :returns: list of (row indices, column indices of the True entries), rows without one left
+        out; None when every entry is True
     """
-    occ = grid != 0
-    if 2 * np.count_nonzero(occ) > occ.size:
+    if occ.all():
         return None
     used = np.flatnonzero(occ.any(axis=1))
     if used.size == 0:
@@ -239,7 +239,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
                     t0: float) -> np.ndarray:
     """Received resource grid, noiseless: sum over links of a_l H_l X_l.
 
-    H_l is evaluated only on the REs its grid occupies (:func:`occupied_groups`; a comb-6 PRS
+    H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
     with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
     H_l X_l = 0.
 
@@ -259,7 +259,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         x = grids[li].reshape(t.size, k_n)
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
                     links.valid[li:li + 1])
-        groups = occupied_groups(x)
+        occ = x != 0   # a dense grid (a jammer's noise) gains nothing from groups
+        groups = occupancy_groups(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
         if groups is None:
             out += amp * frequency_response(one, f, flat_t, t0)[0] * x[None]
             continue

@@ -201,10 +201,10 @@ def test_slot_major_noise_of_the_first_slots_does_not_depend_on_the_grid_length(
 
 @pytest.mark.parametrize("tags", ["hmac", "none"])
 def test_apply_frequency_on_occupied_res_equals_the_full_response(tags):
-    """apply_frequency evaluates H only on each grid's occupied REs (occupied_groups: 6 comb
-    groups for a comb-6 PRS); second method: sum_l a_l H_l X_l with frequency_response on every
+    """apply_frequency evaluates H only on each grid's occupied REs (occupancy_groups: the
+    symbols grouped by comb pattern, each occupied RE in one group); second method: sum_l a_l H_l X_l with frequency_response on every
     RE of the grid (exact: the same products; rtol 1e-12 for summation order). A dense grid
-    (noise on every RE, like a jammer's) takes the full path."""
+    (noise on every RE, like a jammer's) has no groups and takes the full path."""
     from veriloc_rt.security.keys import simulated_keys
 
     nr = NRConfig(slots_per_frame=2)
@@ -220,14 +220,14 @@ def test_apply_frequency_on_occupied_res_equals_the_full_response(tags):
                   rng.uniform(-150, 150, (4, 5)), rng.uniform(size=(4, 5)) < 0.8)
     links = Links(links.delays, links.gains * links.valid[:, None, :], links.doppler, links.valid)
     amps = np.array([1.0, 0.5, 2.0, 0.1])
-    from veriloc_rt.channel import occupied_groups, subcarrier_frequencies, symbol_times
+    from veriloc_rt.channel import occupancy_groups, subcarrier_frequencies, symbol_times
 
     x0 = grids[0].reshape(-1, ofdm.num_subcarriers)
     cover = np.zeros(x0.shape, dtype=int)
-    for sym, sc in occupied_groups(x0):
+    for sym, sc in occupancy_groups(x0 != 0):
         cover[sym[:, None], sc[None, :]] += 1
     np.testing.assert_array_equal(cover, x0 != 0)          # every occupied RE, once
-    assert occupied_groups(grids[3].reshape(-1, ofdm.num_subcarriers)) is None
+    assert occupancy_groups(grids[3].reshape(-1, ofdm.num_subcarriers) != 0) is None
     t = symbol_times(ofdm, slots, 0.9e-6)
     h = frequency_response(links, subcarrier_frequencies(ofdm), t.ravel(), 0.9e-6)
     want = np.einsum("l,latk,ltk->atk", amps, h, grids.reshape(4, t.size, -1)).reshape(3, 2, 14, -1)

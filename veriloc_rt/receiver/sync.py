@@ -18,9 +18,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from ..channel import subcarrier_frequencies, symbol_layout
+from ..channel import occupancy_groups, subcarrier_frequencies, symbol_layout
 from ..nr.ofdm import OFDM
-from .toa import CrossSpectra, occupancy_groups, spatial_dof
+from .toa import CrossSpectra, spatial_dof
 
 __all__ = ["frequency_cross_spectra", "time_cross_spectra", "noise_variance", "block_index"]
 

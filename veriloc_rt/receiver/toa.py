@@ -38,20 +38,10 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.stats import chi2
 
+from ..channel import occupancy_groups
 from ..channel_config import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
-
-
-def occupancy_groups(occ: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
-    """Rows of a boolean matrix grouped by their pattern: a list of (row indices, column
-    indices of the True entries), rows without one left out; None when every entry is True."""
-    if occ.all():
-        return None
-    rows: dict[bytes, list[int]] = {}
-    for b, row in enumerate(np.packbits(occ, axis=1)):
-        rows.setdefault(row.tobytes(), []).append(b)
-    return [(np.array(bl), np.flatnonzero(occ[bl[0]])) for bl in rows.values() if occ[bl[0]].any()]
 
 
 @dataclass(frozen=True, eq=False)
