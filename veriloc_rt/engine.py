@@ -248,6 +248,10 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
         todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
         ahead = (pool or LocalChains(runner)).imap(scenario, todo)
         todo_set = set(todo)
+        # progress in point-scenarios computed (a point of 'none' in the attack window also
+        # computes the later attack scenarios there), so that the ETA follows the work
+        work = {i: runner.chain_work(scenario, i) for i in todo}
+        work_total, work_done = sum(work.values()), 0
         try:
             for i in range(len(done), n):
                 if i in todo_set:
@@ -261,8 +265,11 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
                 done.append(row)
                 if writer:
                     writer.write(row)
-                if progress:
+                if progress and not work_total:   # nothing left to compute: the points
                     progress(scenario, i + 1, n)
+                elif progress and i in work:
+                    work_done += work[i]
+                    progress(scenario, work_done, work_total)
         finally:
             if writer:
                 writer.close()

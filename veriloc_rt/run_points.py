@@ -174,11 +174,7 @@ class ScenarioRunner:
         from one call to the next (:meth:`PositioningChain._benign`). The engine holds them
         until their scenario comes."""
         out: dict = {}
-        scenarios = [scenario]
-        if self.window[i] and scenario in self.cfg.run.scenarios:
-            later = self.cfg.run.scenarios[self.cfg.run.scenarios.index(scenario) + 1:]
-            scenarios += [s for s in later if s != "none"]
-        for sc in scenarios:
+        for sc in self._scenarios_at(scenario, i):
             for k, c, m in self._keys():   # 'standard' first: the DS chain reuses its timing
                 ck = self._ck(k, sc, i)
                 if ck in out or (sc != scenario and ck in self._benign):
@@ -186,6 +182,19 @@ class ScenarioRunner:
                 std = out.get(self._ck("standard", sc, i)) if k == "ds" else None
                 out[ck] = self._chain(k, c, sc, m, i, std)
         return out
+
+    def _scenarios_at(self, scenario: str, i: int) -> list[str]:
+        """The scenarios :meth:`compute_chains` evaluates at point ``i`` of ``scenario``."""
+        out = [scenario]
+        if self.window[i] and scenario in self.cfg.run.scenarios:
+            later = self.cfg.run.scenarios[self.cfg.run.scenarios.index(scenario) + 1:]
+            out += [s for s in later if s != "none"]
+        return out
+
+    def chain_work(self, scenario: str, i: int) -> int:
+        """How many scenarios' chains point ``i`` of ``scenario`` still computes (for progress)."""
+        return sum(any(self._ck(k, sc, i) not in self._benign for k, _, _ in self._keys())
+                   for sc in self._scenarios_at(scenario, i))
 
     def store_chains(self, results: dict) -> None:
         """Results from :meth:`compute_chains` (run elsewhere) for the next :meth:`point` calls."""

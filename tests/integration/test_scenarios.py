@@ -185,3 +185,21 @@ def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
             np.testing.assert_array_equal(reuse.detected, own.detected)
             seen.extend(own.tags_valid)
     assert 0 < sum(seen) < len(seen)   # both verdicts occur
+
+
+def test_progress_counts_the_point_scenarios_each_scenario_computes(tmp_path):
+    """The first scenario computes the later attack scenarios in the attack window with its own
+    chains, so its progress runs over n + 3 x (window points) point-scenarios (counted from the
+    config's window: independent of the runner), every call increasing; the later scenarios find
+    every chain computed and report their points."""
+    cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                            "trajectory": {"num_points": 12}, "seed": 5})
+    calls = []
+    run(cfg, None, progress=lambda label, done, total: calls.append((label, done, total)), workers=1)
+    window = int(np.sum(cfg.run.attack_points(12)))
+    assert window > 0
+    none = [(d, t) for lab, d, t in calls if lab == "none"]
+    assert {t for _, t in none} == {12 + 3 * window}
+    assert [d for d, _ in none] == sorted({d for d, _ in none}) and none[-1][0] == 12 + 3 * window
+    for s in ("fbs", "meaconing", "jamming"):
+        assert [(d, t) for lab, d, t in calls if lab == s] == [(i, 12) for i in range(1, 13)]
