@@ -99,10 +99,10 @@ class ScenarioRunner:
                   carrier_frequency_hz=cfg.propagation.carrier_frequency_hz, keys=keys)
         sec = cfg.security
         self.chains = {"standard": PositioningChain(security=sec, receiver=cfg.receiver, **mk)}
-        if cfg.run.evaluate_encrypted:  # outcomes only: no uplink needed
+        if cfg.run.evaluate_encrypted:  # outcomes only: no uplink, AoA or tag check needed
             enc = dataclasses.replace(sec, encrypted=(True,) * nbs)
             rx = dataclasses.replace(cfg.receiver, uplink=False)
-            self.chains["encrypted"] = PositioningChain(security=enc, receiver=rx, **mk)
+            self.chains["encrypted"] = PositioningChain(security=enc, receiver=rx, fix_only=True, **mk)
         self.ds_chain = None
         if cfg.run.digsig == "separate" and sec.tag_scheme != "ds":
             ds = dataclasses.replace(sec, tag_scheme="ds")

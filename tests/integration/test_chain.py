@@ -295,3 +295,19 @@ def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(do
     # another generator state is another noise draw
     kept(cir, 0, np.random.default_rng(8), adv_ue=adv, adversary_signal=spoof)
     assert kept.draws == 2
+
+
+def test_fix_only_chain_gives_the_full_chains_fix_without_aoa_or_tags():
+    """fix_only (a run's encrypted-PRS chain, whose outcomes alone are used): the same timing and
+    DL fix as the full chain on the same noise (second method: the full call; exact), no AoA and
+    no tag check, while the BSs still transmit their tags."""
+    ue = np.array([10.0, 20.0, 1.5])
+    keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
+    args = (NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme="hmac", encrypted=(True,) * 3),
+            ChannelConfig(), ReceiverConfig(uplink=False), ArrayConfig(), FC, keys)
+    full = PositioningChain(*args)(exact_cir(ue), 0, np.random.default_rng(3))
+    only = PositioningChain(*args, fix_only=True)(exact_cir(ue), 0, np.random.default_rng(3))
+    np.testing.assert_array_equal(only.toa_s, full.toa_s)
+    np.testing.assert_array_equal(only.position.position, full.position.position)
+    assert full.tags_checked and full.tags_valid.all() and all(a is not None for a in full.aoa)
+    assert not only.tags_checked and not only.tags_valid.any() and all(a is None for a in only.aoa)

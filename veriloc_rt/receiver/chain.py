@@ -114,6 +114,9 @@ class PositioningChain:
         a point are the CIR's ``tx_index`` (slot 0: RSTD reference); a transmitter and tag
         verifier are built per serving set and cached. An empty slot (``NO_TX``) transmits under
         a dummy identity through a link without paths, i.e. nothing arrives.
+    :param fix_only: compute the DL fix alone: no AoA and no tag check (``aoa`` all None,
+        ``tags_checked`` False); the BSs still transmit their tags. For a chain whose
+        outcomes alone are used (a run's encrypted-PRS chain)
     """
 
     #: keep the last serving BSs' signal plus noise and uplink fix for the next call with the
@@ -123,11 +126,12 @@ class PositioningChain:
 
     def __init__(self, nr: NRConfig, security: SecurityConfig, channel: ChannelConfig,
                  receiver: ReceiverConfig, ue_array: ArrayConfig, carrier_frequency_hz: float,
-                 keys: Mapping[int, BSKeys] | None = None):
+                 keys: Mapping[int, BSKeys] | None = None, fix_only: bool = False):
         nr.validate()
         security.validate()
         self.nr, self.security, self.channel, self.receiver = nr, security, channel, receiver
         self.keys = dict(keys) if keys is not None else {}
+        self.fix_only = bool(fix_only)
         self.ofdm = OFDM(nr)
         self.slots = range(nr.slots_per_frame)
         self._setups: dict[tuple, tuple] = {}
@@ -390,7 +394,7 @@ class PositioningChain:
         aoas: list[AoAEstimate | None] = []
         az = np.full(self.num_bs, np.nan)
         for b, (e, cs) in enumerate(ests):
-            if not e.detected:
+            if not e.detected or self.fix_only:
                 aoas.append(None)
                 continue
             if self.receiver.aoa_snapshots == "peak":
@@ -405,6 +409,8 @@ class PositioningChain:
                 ref = np.broadcast_to(np.asarray(reference_azimuth, dtype=float), (self.num_bs,))[b]
                 az[b] = float(est.resolve(ref)[0])
         clock("aoa")
+        if self.fix_only:
+            verifier = None
         tags = self._check_tags(verifier, grid, [e for e, _ in ests], frame, sig, encrypted_replica)
         clock("tags")
         up = None
