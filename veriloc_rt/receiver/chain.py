@@ -156,8 +156,7 @@ class PositioningChain:
         self.decimation = max(1, min(channel.time_decimation, self.ofdm.fft_size // nr.min_fft_size))
         self._frame: tuple | None = None
         #: the last serving BSs' signal plus noise and the last uplink fix (see :meth:`_benign`)
-        self._benign_cache: tuple | None = None
-        self._uplink_cache: tuple | None = None
+        self._kept_values: dict[str, tuple] = {}
         #: seconds spent per stage over every call (a run reports them; reading is optional)
         self.stage_s = dict.fromkeys(STAGES, 0.0)
 
@@ -230,35 +229,40 @@ class PositioningChain:
         mode, slots, the CIR object and ``rng``'s state on entry; None: not kept), and a call with
         the same key gets it back with ``rng`` moved past the noise draws, as if drawn again.
         """
-        key = None if key is None or not self.keep_benign else key + (num_slots, rng.bit_generator.state)
-        c = self._benign_cache
-        if key is not None and c is not None and c[0][1:] == key[1:] and c[0][0] is key[0]:
-            rng.bit_generator.state = c[2]
-            return c[1]
-        if self.channel.domain == "frequency":
-            x = apply_frequency(links, sig["grids"][:, :num_slots], amps, self.ofdm,
-                                self.slots[:num_slots], t0)
-        else:
-            x = apply_time(links, sig["waveform"], amps, self.ofdm.sample_rate_hz, t0,
-                           self.buffer_samples, self.decimation)
-        x = self._add_noise(x, rng)
-        x.flags.writeable = False
-        if key is not None:
-            self._benign_cache = (key, x, rng.bit_generator.state)
-        return x
+        def compute():
+            if self.channel.domain == "frequency":
+                x = apply_frequency(links, sig["grids"][:, :num_slots], amps, self.ofdm,
+                                    self.slots[:num_slots], t0)
+            else:
+                x = apply_time(links, sig["waveform"], amps, self.ofdm.sample_rate_hz, t0,
+                               self.buffer_samples, self.decimation)
+            x = self._add_noise(x, rng)
+            x.flags.writeable = False
+            return x
+
+        return self._kept("benign", None if key is None else key + (num_slots,), rng, compute)
 
     def _uplink(self, bs_ue: CIR, point: int, bs_pos: np.ndarray, ue_h: float,
                 rng: np.random.Generator) -> UplinkResult:
         """The uplink fix (the adversary does not touch it: the last one is kept like
         :meth:`_benign`'s grid, under the CIR, the point and ``rng``'s state on entry)."""
-        key = (bs_ue, point, rng.bit_generator.state)
-        c = self._uplink_cache
-        if self.keep_benign and c is not None and c[0][0] is bs_ue and c[0][1:] == key[1:]:
+        return self._kept("uplink", (bs_ue, point), rng, lambda: self.uplink(
+            Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng))
+
+    def _kept(self, slot: str, key: tuple | None, rng: np.random.Generator, compute):
+        """``compute()`` (which draws from ``rng``), or the value kept in ``slot`` by the last
+        call with the same key and ``rng`` state, with ``rng`` moved past its draws. ``key[0]``
+        is compared by identity (a CIR object), the rest by value; None: not kept."""
+        if key is None or not self.keep_benign:
+            return compute()
+        key = key + (rng.bit_generator.state,)
+        c = self._kept_values.get(slot)
+        if c is not None and c[0][0] is key[0] and c[0][1:] == key[1:]:
             rng.bit_generator.state = c[2]
             return c[1]
-        up = self.uplink(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos, ue_h, rng)
-        self._uplink_cache = (key, up, rng.bit_generator.state)
-        return up
+        value = compute()
+        self._kept_values[slot] = (key, value, rng.bit_generator.state)
+        return value
 
     def _add_noise(self, x: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The received signal plus thermal noise: a grid [A, S, 14, K] in the frequency domain,
