@@ -14,7 +14,9 @@ reference lies within the cyclic prefix, as :func:`veriloc_rt.channel.apply_freq
   ``i`` delayed by ``d_i`` as the per-subcarrier phase ``exp(-j 2 pi f_k d_i)`` (``f_k`` the
   baseband subcarrier frequency, the channel module's convention). The spoofer's power is split
   equally over its replicas. The adversary's estimate of the UE is the true UE position (ideal
-  tracking, the strongest adversary; documented choice).
+  tracking, the strongest adversary; documented choice). With ``threats.fbs.link_gain``
+  'spoofed_bs' replica ``i`` is scaled by sqrt(G_i / G_adv) (path gains of BS i's and the
+  adversary's links to the UE), so that after the adversary's link it arrives with BS i's.
 * **meaconing**: the grid the adversary receives from the serving BSs over the ``bs_adv`` links
   (the BSs transmit with the powers the UE's power control set) through its receive antenna
   gain (``meaconing.rx_antenna_gain_dbi``), plus its thermal noise (``meaconing.noise_figure_db``,
@@ -75,15 +77,18 @@ class AdversarySignal:
         return np.exp(-2j * np.pi * self.freqs * delay_s)
 
     def __call__(self, scenario: str, point: int, frame: int, bs_ue: CIR, bs_adv: CIR,
-                 adversary_pos: np.ndarray, ue_pos: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+                 adversary_pos: np.ndarray, ue_pos: np.ndarray, rng: np.random.Generator,
+                 adv_ue: CIR | None = None) -> np.ndarray:
         """Adversary grid [num_slots, 14, num_subcarriers] complex128 (unit-RE normalisation).
 
         :param scenario: 'fbs', 'meaconing' or 'jamming'
         :param adversary_pos, ue_pos: [3] float64, m, at this point
         :param rng: the adversary's own draws (spoofer tag fill, relay noise, jamming noise)
+        :param adv_ue: the adversary -> UE CIR the chain applies (needed by 'fbs' with
+            ``threats.fbs.link_gain`` 'spoofed_bs')
         """
         if scenario == "fbs":
-            return self._fbs(point, frame, bs_ue, adversary_pos, ue_pos, rng)
+            return self._fbs(point, frame, bs_ue, adversary_pos, ue_pos, rng, adv_ue)
         if scenario == "meaconing":
             return self._meaconing(point, frame, bs_ue, bs_adv, rng)
         if scenario == "jamming":
@@ -91,7 +96,7 @@ class AdversarySignal:
         raise ValueError(f"Argument `scenario` must be one of 'fbs', 'meaconing', 'jamming', "
                          f"not {scenario!r}")
 
-    def _fbs(self, point, frame, bs_ue, adversary_pos, ue_pos, rng) -> np.ndarray:
+    def _fbs(self, point, frame, bs_ue, adversary_pos, ue_pos, rng, adv_ue) -> np.ndarray:
         plan = self.fbs(bs_ue.tx_pos[point], adversary_pos, ue_pos)
         reps = spoofer_replicas(self.cfg.nr, frame, plan.replicas, rng, slots=self.slots,
                                 tag_fill=self.cfg.threats.fbs.tag_fill,
@@ -101,8 +106,17 @@ class AdversarySignal:
             return out
         amp = float(re_amplitude(self.fbs.power_w / len(reps) * self.fbs_power_factor,
                                  self.ofdm)) / self.unit
-        for _, delay, grid in reps:
-            out += grid * self._delay(delay)[None, None, :]
+        link = np.ones(len(reps))
+        if self.cfg.threats.fbs.link_gain == "spoofed_bs":
+            # each replica reaches the UE with the gain of the BS it imitates: the chain applies
+            # the adversary's link, so scale by the ratio of the two links' path gains
+            if adv_ue is None:
+                raise ValueError("threats.fbs.link_gain 'spoofed_bs' needs the adversary -> UE CIR")
+            g_adv = float(Links.from_cir(adv_ue, point).power_gain()[0])
+            g_bs = Links.from_cir(bs_ue, point).power_gain()
+            link = np.array([math.sqrt(g_bs[b] / g_adv) if g_adv > 0 else 0.0 for b, _, _ in reps])
+        for (_, delay, grid), s in zip(reps, link):
+            out += (s * grid) * self._delay(delay)[None, None, :]
         return amp * out
 
     def _meaconing(self, point, frame, bs_ue, bs_adv, rng) -> np.ndarray:

@@ -213,7 +213,8 @@ class ScenarioRunner:
             t = time.perf_counter()
             sig = self.adversary[key](scenario, i, i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
                                       self.geo.ue.pos[i], stream(self.cfg.seed, "adversary",
-                                                                 _SCEN[scenario], mode, i))
+                                                                 _SCEN[scenario], mode, i),
+                                      adv_ue=p.adv_ue)
             self.timing["adversary"] += time.perf_counter() - t
         t = time.perf_counter()
         before = dict(chain.stage_s)

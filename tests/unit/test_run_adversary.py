@@ -62,3 +62,37 @@ def test_relay_agc_power_and_receive_gain(tmp_path):
     # the channel-bandwidth noise convention reaches the relay's receiver: density x B / 122.88 MHz
     g_b = _relay(tmp_path, channel={"noise_bandwidth_hz": 10e6})[2]
     assert _snr(g_b.ravel(), clean) / snr0 == pytest.approx(12.288, rel=GAIN_RTOL)
+
+
+def test_fbs_link_gain_spoofed_bs_scales_each_replica_to_its_bs(tmp_path):
+    """``threats.fbs.link_gain`` 'spoofed_bs': after the chain applies the adversary -> UE link,
+    replica i arrives with BS i's path gain instead, so on BS i's REs the grid is the physical
+    one times sqrt(G_i / G_adv), G the link's power gain summed over paths and averaged over the
+    UE antennas (computed here from the CIRs' gains). Exact up to float rounding (1e-9)."""
+    grids = {}
+    for link in ("adversary", "spoofed_bs"):
+        cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                                "trajectory": {"num_points": 3}, "seed": 2,
+                                "threats": {"fbs": {"link_gain": link}},
+                                "run": {"evaluate_encrypted": False}})
+        geo = build_geometry(cfg, tmp_path / link)
+        prop = compute_propagation(cfg, geo)
+        runner = ScenarioRunner(cfg, geo, prop, run_keys(cfg, len(geo.bs_pos)))
+        sig = AdversarySignal(cfg, runner.chains["standard"])
+        grids[link] = sig("fbs", 1, 1, prop.bs_ue, prop.bs_adv, geo.adversary.pos[1], geo.ue.pos[1],
+                          stream(cfg.seed, "adversary", 1, 0, 1), adv_ue=prop.adv_ue)
+    gain = lambda cir: np.sum(np.mean(np.abs(cir.gains[1]) ** 2, axis=1), axis=-1)  # noqa: E731
+    expect = np.sqrt(gain(prop.bs_ue) / gain(prop.adv_ue)[0])                         # [num_bs]
+    a, b = grids["adversary"], grids["spoofed_bs"]
+    sent = np.abs(a) > 0
+    assert np.array_equal(sent, np.abs(b) > 0)
+    ratio = b[sent] / a[sent]
+    np.testing.assert_allclose(ratio.imag, 0.0, atol=1e-9)
+    # every RE of the spoofer's grid belongs to one replica: its scale is one of the BSs' ratios,
+    # and each BS's ratio occurs (all three serving BSs are spoofed)
+    rel = np.abs(ratio.real[:, None] / expect[None, :] - 1.0)                  # [REs, num_bs]
+    assert np.all(rel.min(axis=1) < 1e-9)
+    assert set(np.argmin(rel, axis=1)) == set(range(expect.size))
+    with pytest.raises(ValueError, match="spoofed_bs"):
+        sig("fbs", 1, 1, prop.bs_ue, prop.bs_adv, geo.adversary.pos[1], geo.ue.pos[1],
+            stream(cfg.seed, "adversary", 1, 0, 1))

@@ -77,6 +77,13 @@ class FBSConfig:
                       "or nowhere, a DoS)", choices=FBS_MODES)
     bias_s: float = param(2e-6, "mode 'bias': timing bias of every spoofed BS", lo=-100e-6,
                           hi=100e-6)
+    link_gain: str = param("adversary", "the path gain the spoofer's signal reaches the UE with: "
+                           "'adversary': its own adversary -> UE link (physical); 'spoofed_bs': "
+                           "the link of the BS each replica imitates, i.e. the replica arrives "
+                           "power_dbm minus that BS's path loss, as if it passed through the "
+                           "imitated BS's channel (the paper's 'identical propagation ... but "
+                           "transmitted at 48 dBm'); delays, Doppler and direction stay the "
+                           "adversary's", choices=("adversary", "spoofed_bs"))
     spoofed_slots: tuple[int, ...] = param((), "serving-BS slots (0 = the RSTD reference) whose "
                                            "PRS the spoofer replicates; empty: all. A subset "
                                            "biases only those BSs' timing, the others keep the "
