@@ -207,6 +207,24 @@ def test_comb_parts_hold_only_the_occupied_bins_and_match_the_dense_products():
 
     occupied = np.concatenate([q.reshape(5, -1) for _, _, q in cs.parts], axis=1)
     assert spatial_dof(occupied) == pytest.approx(spatial_dof(cs.dense.reshape(5, -1)), rel=1e-12)
+    # the parts pooled without concatenating
+    assert spatial_dof([q.reshape(5, -1) for _, _, q in cs.parts]) == pytest.approx(
+        spatial_dof(occupied), rel=1e-12)
+
+
+def test_spatial_dof_equals_the_eigenvalue_definition():
+    """spatial_dof = 2 (sum lambda)^2 / sum lambda^2 over the eigenvalues of the sample spatial
+    covariance (Satterthwaite), computed here with an eigendecomposition; trace and Frobenius
+    norm give the same up to rounding (1e-10)."""
+    from veriloc_rt.receiver.toa import spatial_dof
+
+    rng = np.random.default_rng(7)
+    for mix in (np.eye(5), rng.standard_normal((5, 5)), np.outer(np.arange(1, 6), np.ones(5))):
+        x = mix @ (rng.standard_normal((5, 3000)) + 1j * rng.standard_normal((5, 3000)))
+        lam = np.clip(np.linalg.eigvalsh(x @ x.conj().T / x.shape[1]), 0.0, None)
+        ref = float(np.clip(2.0 * lam.sum() ** 2 / np.sum(lam ** 2), 2.0, 10.0))
+        assert spatial_dof(x) == pytest.approx(ref, rel=1e-10)
+    assert spatial_dof(np.zeros((5, 10), complex)) == 10.0
 
 
 @pytest.mark.parametrize("contiguous", [True, False])
