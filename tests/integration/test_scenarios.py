@@ -119,6 +119,13 @@ def test_raytraced_tiny_canyon_four_scenarios(tmp_path, monkeypatch):
     cfg = config_from_dict(data)
     res = run(cfg, tmp_path / "r")
     check_run(res, tmp_path / "r")
+    # the adversary's links are traced only in the attack window, where the scenarios use them
+    from veriloc_rt.propagation.cir import NO_TX
+
+    window = cfg.run.attack_points(res.geometry.num_points)
+    assert 0 < window.sum() < window.size
+    assert np.array_equal(res.propagation.adv_ue.tx_index[:, 0] != NO_TX, window)
+    assert np.array_equal(np.all(res.propagation.bs_adv.tx_index != NO_TX, axis=1), window)
 
 
 def test_two_workers_give_the_serial_result(tmp_path):
