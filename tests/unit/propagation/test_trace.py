@@ -67,6 +67,38 @@ def test_trace_tiny_canyon_and_cache(tmp_path):
 
 
 @pytest.mark.raytrace
+def test_a_links_paths_do_not_depend_on_the_other_links_traced(tmp_path):
+    """One source per PathSolver call: a UE's links traced with the whole drive's or alone are
+    bit-identical (with sources batched, Sionna's sampled diffraction gave a source other draws
+    next to other sources, and the links differed), and so are the links of a run that traces
+    the adversary at every point or only at some."""
+    from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
+
+    cfg = config_from_dict(TINY)
+    geo = build_geometry(cfg, tmp_path / "scene")
+    fid = cfg.propagation.raytrace
+    tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed, None)
+    tx = geo.bs_pos[geo.serving].reshape(-1, 3)
+    rx = np.repeat(geo.ue.pos, 3, axis=0)
+    every = trace_links(tracer, tx, rx, True, fid.rays_per_source)
+    for i in (0, geo.num_points // 2, geo.num_points - 1):
+        alone = trace_links(tracer, tx[3 * i:3 * i + 3], rx[3 * i:3 * i + 3], True, fid.rays_per_source)
+        for j in range(3):   # the valid paths (the padding follows the longest link traced)
+            v, w = every.valid[3 * i + j], alone.valid[j]
+            assert v.sum() == w.sum() > 0, (i, j)
+            for f in ("tau", "a", "phi_r", "theta_r"):
+                assert np.array_equal(getattr(every, f)[3 * i + j][v], getattr(alone, f)[j][w]), (i, j, f)
+    some = np.zeros(geo.num_points, bool)
+    some[geo.num_points // 2:] = True
+    full = trace(geo, cfg.propagation, cfg.seed, cache_dir=None)
+    part = trace(geo, cfg.propagation, cfg.seed, cache_dir=None, adversary_points=some)
+    for name, rows in (("bs_ue", slice(None)), ("bs_adv", some), ("adv_ue", some)):
+        x, y = getattr(full, name), getattr(part, name)
+        for f in ("delays", "gains", "valid", "aoa_az"):
+            assert np.array_equal(getattr(x, f)[rows], getattr(y, f)[rows]), (name, f)
+
+
+@pytest.mark.raytrace
 def test_doppler_matches_sionna(tmp_path):
     """Our Doppler from arrival/departure angles and velocities vs Sionna's own (moving tx and
     rx over ground: LoS and reflection). Sionna's is float32: 1e-3 Hz at ~50 Hz shifts."""
