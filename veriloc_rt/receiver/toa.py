@@ -99,24 +99,27 @@ class CrossSpectra:
             return None
         return tuple((b, k, self.spectra[:, b[:, None], k[None, :]]) for b, k in groups)
 
+    @cached_property
+    def groups(self) -> tuple:
+        """``occupied``, or one group of every block and bin when that is None: what the
+        products below loop over (one product per group)."""
+        if self.occupied is not None:
+            return self.occupied
+        b, k = self.spectra.shape[1:]
+        return ((np.arange(b), np.arange(k), self.spectra),)
+
     def combine(self, weights: np.ndarray) -> np.ndarray:
         """sum_b w_b S_abk: [B] -> [A, K] complex128."""
-        occ = self.occupied
-        if occ is None:
-            return (weights[None, None, :] @ self.spectra)[:, 0, :]
         out = np.zeros((self.num_ant, self.freqs.size), dtype=np.complex128)
-        for blocks, bins, part in occ:
+        for blocks, bins, part in self.groups:
             out[:, bins] += (weights[blocks][None, None, :] @ part)[:, 0, :]
         return out
 
     def at_delay(self, tau: float) -> np.ndarray:
         """Per-block correlation c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128."""
         e = np.exp(2j * np.pi * self.freqs * tau)
-        occ = self.occupied
-        if occ is None:
-            return self.spectra @ e
         out = np.zeros((self.num_ant, self.ref_power.shape[0]), dtype=np.complex128)
-        for blocks, bins, part in occ:
+        for blocks, bins, part in self.groups:
             out[:, blocks] = part @ e[bins]
         return out
 
@@ -239,18 +242,16 @@ class ToAEstimator:
         thresholds (relative error ~1e-7, far below the noise); the ToA itself is refined on
         exact double-precision evaluations. Measured 2x faster than double on the chain
         (scripts/bench_chain.py). A per-bin window w_k commutes with the sum over blocks, so
-        one product serves the windowed map too. On the occupied parts (``cs.occupied``), one
+        one product serves the windowed map too. On the occupied parts (``cs.groups``), one
         product per group of blocks sharing their bins: a comb-6 PRS needs 1/6 of the dense
         product's work (summing block by block instead was measured 6x slower).
         """
         rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)   # [V, B]
-        occ = cs.occupied
-        if occ is None:
-            a_, b_, k_ = cs.spectra.shape
-            return (rot @ cs.spectra.astype(np.complex64).transpose(1, 0, 2).reshape(b_, a_ * k_)).reshape(-1, a_, k_)
-        out = np.zeros((nus.size, cs.num_ant, cs.freqs.size), dtype=np.complex64)
-        for blocks, bins, part in occ:
-            out[:, :, bins] = np.matmul(rot[None, :, blocks], part.astype(np.complex64)).transpose(1, 0, 2)
+        a_ = cs.num_ant
+        out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
+        for blocks, bins, part in cs.groups:
+            q = part.astype(np.complex64).transpose(1, 0, 2).reshape(blocks.size, a_ * bins.size)
+            out[:, :, bins] = (rot[:, blocks] @ q).reshape(-1, a_, bins.size)
         return out
 
     @staticmethod
@@ -301,7 +302,7 @@ class ToAEstimator:
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
         else:
-            nu = 0.0
+            nu, g_nu, nus = 0.0, None, None
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
@@ -327,9 +328,7 @@ class ToAEstimator:
         # (a spoofer's standard PRS against an encrypted replica, a relay) is absent from the
         # free symbols but spreads over every lag of the profile like noise; its spatial
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
-        occupied = ([cs.spectra.reshape(a_n, -1)] if cs.occupied is None else
-                    [q.reshape(a_n, -1) for _, _, q in cs.occupied])
-        dof = min(dof, spatial_dof(occupied))
+        dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups]))
         nv = max(float(noise_var), 0.0)
         sum_ref = float(np.sum(cs.ref_power))
         floor_rect = a_n * nv * sum_ref
@@ -342,11 +341,27 @@ class ToAEstimator:
         n_cells = max(lags.size / cfg.upsample, 1.0) * (nus.size if cfg.doppler_max_hz > 0 else 1)
         gamma_det = chdtri(dof, cfg.detection_false_alarm / n_cells) / dof
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
-        if not detected:   # no ToA to pick: the peak and snapshots at the strongest lag
+        if detected:
+            tau, nu, rot, g = self._pick(cs, (idx, lags, n_up, step), m_rect, g, g_nu, nus, nu, rot,
+                                         tc, nv, dof)
+        else:   # no ToA to pick: the peak and snapshots at the strongest lag
             tau = float(lags[int(np.argmax(m_rect))] * step)
-            return ToAEstimate(detected=False, toa_s=float("nan"), doppler_hz=float(nu),
-                               peak_snr_db=float(snr_db), peak=self._eval(g, cs.freqs, tau),
-                               snapshots=cs.at_delay(tau) * rot, noise_var=nv)
+        return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
+                           doppler_hz=float(nu), peak_snr_db=float(snr_db),
+                           peak=self._eval(g, cs.freqs, tau), snapshots=cs.at_delay(tau) * rot,
+                           noise_var=nv)
+
+    def _pick(self, cs: CrossSpectra, grid: tuple, m_rect: np.ndarray, g: np.ndarray, g_nu, nus,
+              nu: float, rot: np.ndarray, tc: np.ndarray, nv: float, dof: float):
+        """Steps 4 and 5 for a detected BS: (ToA, Doppler, block derotation, combined spectra),
+        the last three updated when the first path's own Doppler replaces the scan's.
+
+        :param grid: (bin indices, lags, grid size, lag step in s) of the zero-padded profile
+        :param g_nu, nus: the scan's Doppler spectra and hypotheses (None without a scan)
+        """
+        cfg = self.cfg
+        a_n = cs.num_ant
+        idx, lags, n_up, step = grid
         # 4. ToA rule
         if cfg.toa_method == "strongest":
             win = np.ones(cs.freqs.shape)
@@ -393,8 +408,4 @@ class ToAEstimator:
             vals = [float(np.sum(np.abs(self._eval(gw, cs.freqs, tau + d)) ** 2)) for d in (-h, 0.0, h)]
             tau += h * _parabola(*vals)
             h /= 4
-        pk = self._eval(g, cs.freqs, tau)
-        snaps = cs.at_delay(tau) * rot
-        return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
-                           doppler_hz=float(nu), peak_snr_db=float(snr_db), peak=pk,
-                           snapshots=snaps, noise_var=nv)
+        return tau, nu, rot, g
