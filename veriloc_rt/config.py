@@ -138,6 +138,12 @@ class RayTracingConfig:
     los: bool = param(True, "line-of-sight paths")
     specular_reflection: bool = param(True, "specular reflections")
     diffraction: bool = param(True, "first-order wedge diffraction")
+    diffraction_coefficient: str = param("utd", "'utd': the Kouyoumjian-Pathak UTD (perfect "
+                                         "conductors) and a reciprocal form of Luebbers' "
+                                         "heuristic (lossy wedges), checked against the exact "
+                                         "half-plane solution; 'sionna': Sionna RT's own "
+                                         "coefficient, kept for comparison (docs/diffraction.md)",
+                                         choices=("utd", "sionna"))
     diffuse_reflection: bool = param(False, "diffuse scattering")
     refraction: bool = param(False, "refraction through walls")
     max_paths_per_link: int = param(32, "keep the strongest N paths per link", lo=1, hi=4096)

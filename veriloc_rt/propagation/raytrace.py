@@ -50,7 +50,7 @@ from .sionna_rt import RawPaths
 log = logging.getLogger(__name__)
 
 #: Bump when the cached array layout or the tracing recipe changes
-CACHE_VERSION = 2
+CACHE_VERSION = 3
 
 Progress = Callable[[int, int], None]
 
@@ -135,7 +135,8 @@ class LinkTracer:
     def _tracer_obj(self):
         if self._tracer is None:
             from .sionna_rt import SionnaTracer
-            self._tracer = SionnaTracer(self.scene_xml, self.fc, self.seed)
+            self._tracer = SionnaTracer(self.scene_xml, self.fc, self.seed,
+                                        self.fid.diffraction_coefficient)
         return self._tracer
 
     def _call_key(self, src: np.ndarray, dst: np.ndarray, pairs: np.ndarray, rays: int) -> str:

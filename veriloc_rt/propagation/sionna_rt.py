@@ -93,11 +93,22 @@ class SionnaTracer:
     :param scene_xml: Mitsuba XML scene
     :param frequency: carrier frequency [Hz]
     :param seed: PathSolver seed (deterministic candidate generation)
+    :param diffraction_coefficient: 'utd' gives every object a material whose diffraction is
+        the Kouyoumjian-Pathak / Luebbers UTD (:mod:`.utd_material`); 'sionna' keeps Sionna's
     """
 
-    def __init__(self, scene_xml: str | Path, frequency: float, seed: int):
+    def __init__(self, scene_xml: str | Path, frequency: float, seed: int,
+                 diffraction_coefficient: str = "utd"):
         self._rt = rt = import_sionna()
         self.scene = rt.load_scene(str(scene_xml), merge_shapes=True)
+        if diffraction_coefficient == "utd":
+            # deferred: the module subclasses Sionna's materials, importable only after
+            # import_sionna() has selected the Mitsuba variant
+            from .utd_material import use_utd_materials
+            use_utd_materials(self.scene)
+        elif diffraction_coefficient != "sionna":
+            raise ValueError("`diffraction_coefficient` must be 'utd' or 'sionna', "
+                             f"not {diffraction_coefficient!r}")
         self.scene.frequency = frequency
         self.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
         self.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
