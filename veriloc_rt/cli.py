@@ -257,6 +257,19 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def cmd_validate(args) -> int:
+    from .validate import format_validation, run_validate
+
+    cfg = _load(args.config, args.points)
+    res = run_validate(cfg, args.out, progress=ProgressBar())
+    print(format_validation(res))
+    st = res.summary["raytrace_stats"]
+    print(f"ray tracing {res.timing_s['ray_tracing']:.1f} s ({st['cache_hits']} of "
+          f"{st['cache_hits'] + st['calls']} tracer calls from the cache); wrote {args.out}/ "
+          "(validation.json, validation.md, validation_links.csv, validation_pathloss.png, scene/)")
+    return 0
+
+
 def cmd_config(args) -> int:
     from .config import config_schema, config_to_dict
 
@@ -314,6 +327,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--only", nargs="+", choices=("raytrace", "waveform"),
                    help="sweep only these groups of knobs")
     b.set_defaults(func=cmd_bench)
+    v = sub.add_parser("validate", help="the scene's traced path loss against distance beside "
+                       "ITU-R P.1411, COST-231 Walfisch-Ikegami, TR 38.901 UMa/UMi NLOS and free "
+                       "space for the same geometry: table and chart")
+    v.add_argument("config", nargs="?", help="JSON config file with the procedural canyon "
+                   "(its propagation.model is ignored: the links are ray traced)")
+    v.add_argument("--out", required=True, help="output folder")
+    v.add_argument("--points", type=int, help="number of trajectory points")
+    v.set_defaults(func=cmd_validate)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
     c.add_argument("action", choices=("schema", "show"))
     c.add_argument("config", nargs="?", help="JSON config file (for show)")

@@ -16,7 +16,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..constants import SPEED_OF_LIGHT
+from .pathloss_models import breakpoint_distance, tr38901_pathloss_db  # noqa: F401 (re-export)
 
 #: The TR 38.901 version the shipped tables are pinned to
 TR38901_VERSION = "V18.0.0 (pre-Rel-19 UMa; V14.1.0-V18.x agree)"
@@ -32,24 +32,6 @@ def uma_table() -> dict:
     return json.loads(text)
 
 
-def _check_positive(name: str, value) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-        raise ValueError(f"Argument `{name}` must be finite and > 0, not {value!r}")
-    return arr
-
-
-def breakpoint_distance(h_bs_m, h_ut_m, fc_hz, h_e_m: float = 1.0) -> np.ndarray:
-    """d'_BP = 4 h'_BS h'_UT fc / c (Table 7.4.1-1 note 1), h' = h - h_E.
-
-    c is :data:`SPEED_OF_LIGHT` (299 792 458 m/s, as Sionna); the spec text uses 3e8, which
-    moves d'_BP by 0.07 % and the path loss by < 0.01 dB.
-
-    :returns: [...] float64, m
-    """
-    return 4.0 * (np.asarray(h_bs_m) - h_e_m) * (np.asarray(h_ut_m) - h_e_m) * fc_hz / SPEED_OF_LIGHT
-
-
 def uma_pathloss_db(d_2d_m, h_bs_m, h_ut_m, fc_hz, los: bool):
     """Basic UMa path loss of TR 38.901 Table 7.4.1-1 (no shadowing), deterministic form.
 
@@ -60,6 +42,8 @@ def uma_pathloss_db(d_2d_m, h_bs_m, h_ut_m, fc_hz, los: bool):
     LOS: PL1 = 28 + 22 lg d3D + 20 lg fc for d2D <= d'BP, else
     PL2 = 28 + 40 lg d3D + 20 lg fc - 9 lg(d'BP^2 + (h_BS - h_UT)^2).
     NLOS: max(PL_LOS, 13.54 + 39.08 lg d3D + 20 lg fc - 0.6 (h_UT - 1.5)). fc in GHz.
+    Evaluated by :func:`~veriloc_rt.propagation.pathloss_models.tr38901_pathloss_db` on the
+    shipped table.
 
     Validity is 10 m <= d2D <= 5 km, h_BS = 25 m, 1.5 <= h_UT <= 22.5 m; outside it the
     formula is evaluated as is (no clipping, no error) so callers can plot the extrapolation.
@@ -70,33 +54,7 @@ def uma_pathloss_db(d_2d_m, h_bs_m, h_ut_m, fc_hz, los: bool):
     :param los: bool (or [...] bool array broadcastable with d_2d_m)
     :returns: float or [...] float64, dB
     """
-    tab = uma_table()["pathloss"]
-    h_e = tab["h_e_m"]
-    d2 = np.asarray(d_2d_m, dtype=float)
-    if not np.all(np.isfinite(d2)) or np.any(d2 < 0):
-        raise ValueError(f"Argument `d_2d_m` must be finite and >= 0, not {d_2d_m!r}")
-    fc = float(_check_positive("fc_hz", fc_hz))
-    hb = np.asarray(h_bs_m, dtype=float)
-    hu = np.asarray(h_ut_m, dtype=float)
-    for name, h in (("h_bs_m", hb), ("h_ut_m", hu)):
-        if not np.all(np.isfinite(h)) or np.any(h <= h_e):
-            raise ValueError(f"Argument `{name}` must be > h_E = {h_e} m, not {h!r}")
-    los_arr = np.asarray(los)
-    if los_arr.dtype != bool:
-        raise TypeError(f"Argument `los` must be bool, not {type(los).__name__}")
-
-    fc_ghz = fc / 1e9
-    d3 = np.sqrt(d2**2 + (hb - hu) ** 2)
-    d_bp = breakpoint_distance(hb, hu, fc, h_e)
-    p1, p2, pn = tab["los_pl1"], tab["los_pl2"], tab["nlos"]
-    pl1 = p1["const"] + p1["log_d3d"] * np.log10(d3) + p1["log_fc"] * np.log10(fc_ghz)
-    pl2 = (p2["const"] + p2["log_d3d"] * np.log10(d3) + p2["log_fc"] * np.log10(fc_ghz)
-           + p2["log_bp"] * np.log10(d_bp**2 + (hb - hu) ** 2))
-    pl_los = np.where(d2 <= d_bp, pl1, pl2)
-    pl_nlos_prime = (pn["const"] + pn["log_d3d"] * np.log10(d3) + pn["log_fc"] * np.log10(fc_ghz)
-                     + pn["h_ut_slope"] * (hu - pn["h_ut_ref_m"]))
-    out = np.where(los_arr, pl_los, np.maximum(pl_los, pl_nlos_prime))
-    return float(out) if out.ndim == 0 else out
+    return tr38901_pathloss_db(uma_table()["pathloss"], d_2d_m, h_bs_m, h_ut_m, fc_hz, los)
 
 
 def uma_los_probability(d_2d_m, h_ut_m) -> np.ndarray:
