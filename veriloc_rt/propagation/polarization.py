@@ -53,7 +53,8 @@ def project(a_pol: np.ndarray, rx: str, tx: str) -> np.ndarray:
     a_pol = np.asarray(a_pol)
     if a_pol.shape[-2:] != (NUM_POL_PORTS, NUM_POL_PORTS):
         raise ValueError(f"Argument `a_pol` must end in axes (2, 2), not {a_pol.shape}")
-    return np.einsum("r,...rt,t->...", port_vector(rx), a_pol, port_vector(tx)).astype(np.complex128)
+    a = np.einsum("r,...rt,t->...", port_vector(rx), a_pol, port_vector(tx))
+    return a.astype(np.complex128)
 
 
 def xpd_coefficient(xpr_db: float) -> float:

@@ -76,7 +76,8 @@ class RawPaths:
         return RawPaths(**pick)
 
     @classmethod
-    def empty(cls, num_links: int, max_depth: int, num_ports: tuple[int, int] = (2, 2)) -> "RawPaths":
+    def empty(cls, num_links: int, max_depth: int,
+              num_ports: tuple[int, int] = (2, 2)) -> "RawPaths":
         """``num_links`` links without a path (one invalid padding path each)."""
         z = np.zeros((num_links, 1))
         return cls(tau=np.full((num_links, 1), -1.0),

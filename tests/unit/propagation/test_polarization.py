@@ -26,7 +26,8 @@ import pytest
 
 from veriloc_rt.config import MaterialsConfig, PolarizationConfig, RayTracingConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
-from veriloc_rt.propagation.cir import INTERACTION_DIFFUSE, INTERACTION_NONE, INTERACTION_SPECULAR
+from veriloc_rt.propagation.cir import (INTERACTION_DIFFRACTION, INTERACTION_DIFFUSE,
+                                        INTERACTION_NONE, INTERACTION_SPECULAR)
 from veriloc_rt.propagation.polarization import SLANT_ANGLES, project, xpd_coefficient
 
 from .rt_scenes import boxes, ground, write_test_scene
@@ -156,7 +157,8 @@ def test_ground_reflection_near_brewster_per_polarization(ground_tracer):
     fid = RayTracingConfig(max_depth=1, diffraction=False, refraction=False)
     tau, a, inter = link(ground_tracer, tx, rx, fid)
     assert len(tau) == 2 and inter[1, 0] == INTERACTION_SPECULAR
-    field, k_i, k_r, d_ref, g_te, g_tm = _fresnel_reflected(tx, rx, permittivity("medium_dry_ground"))
+    eta = permittivity("medium_dry_ground")
+    field, k_i, k_r, d_ref, g_te, g_tm = _fresnel_reflected(tx, rx, eta)
     assert abs(g_tm) < 0.1 < 0.5 < abs(g_te), "the geometry is Brewster-ish"
     scale = LAM / (4 * np.pi * d_ref)
     for r, t in itertools.product(POLS, POLS):
@@ -179,8 +181,9 @@ def _direct_single_port(tracer, tx_pol, rx_pol, tx, rx, fid, rays):
     from veriloc_rt.propagation.sionna_rt import polarimetric_arrays
 
     rt = tracer._rt
-    tracer.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization=tx_pol)
-    tracer.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization=rx_pol)
+    tracer.scene.tx_array, tracer.scene.rx_array = (
+        rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization=pol)
+        for pol in (tx_pol, rx_pol))
     try:
         return link(tracer, tx, rx, fid, rays)
     finally:
@@ -264,7 +267,8 @@ def test_diffuse_paths_carry_the_configured_xpr(ground_tracer):
     _, a0, _ = link(ground_tracer, tx, rx, RayTracingConfig(max_depth=1, diffraction=False))
     spec = a[kinds == INTERACTION_SPECULAR]
     assert len(spec) == 1
-    assert np.allclose(spec[0], np.sqrt(1 - 0.09) * a0[1], rtol=0, atol=AMP_TOL * np.abs(a0[1]).max())
+    assert np.allclose(spec[0], np.sqrt(1 - 0.09) * a0[1], rtol=0,
+                       atol=AMP_TOL * np.abs(a0[1]).max())
     diff = a[kinds == INTERACTION_DIFFUSE]
     for co, cross in (((0, 0), (1, 0)), ((1, 1), (0, 1))):   # V column, H column
         ratio_db = 10 * np.log10(np.abs(diff[:, cross[0], cross[1]]) ** 2
@@ -327,6 +331,63 @@ def test_trace_applies_each_ends_polarization(tmp_path, direction):
             if abs(want_a[k, ri, ti]) <= RECIP_TOL * scale:   # not coupled: may be absent
                 continue
             assert len(j) == 1, (tx_pol, rx_pol, slot, k)
-            assert abs(gain[j[0]] - want_a[k, ri, ti]) <= RECIP_TOL * scale, (tx_pol, rx_pol, slot, k)
+            assert abs(gain[j[0]] - want_a[k, ri, ti]) <= RECIP_TOL * scale, \
+                (tx_pol, rx_pol, slot, k)
             checked += 1
     assert checked >= 20
+
+
+def kp_utd(phi, phi_p, n, k, ell, sign):
+    """Kouyoumjian-Pathak UTD coefficient of a PEC wedge (Proc. IEEE 62(11), 1974, eq. 25-29),
+    normal incidence (beta0 = pi/2), e^{+j omega t}: sign -1 soft (E parallel to the edge),
+    +1 hard. phi, phi_p measured from the 0-face, exterior angle n pi."""
+    from scipy.special import fresnel as fresnel_integrals
+
+    def transition(x):
+        sx = np.sqrt(x)
+        s_, c_ = fresnel_integrals(sx * np.sqrt(2 / np.pi))
+        tail = np.sqrt(np.pi / 2) * ((0.5 - c_) - 1j * (0.5 - s_))   # int_sx^inf e^{-j t^2} dt
+        return 2j * sx * np.exp(1j * x) * tail
+
+    def term(beta, pm):
+        big_n = np.round((beta + pm * np.pi) / (2 * n * np.pi))
+        a = 2 * np.cos((2 * n * np.pi * big_n - beta) / 2) ** 2
+        return transition(k * ell * a) / np.tan((np.pi + pm * beta) / (2 * n))
+
+    d = term(phi - phi_p, 1) + term(phi - phi_p, -1) + sign * (term(phi + phi_p, 1)
+                                                              + term(phi + phi_p, -1))
+    return -np.exp(-1j * np.pi / 4) / (2 * n * np.sqrt(2 * np.pi * k)) * d
+
+
+#: roof-edge diffraction against the PEC UTD: the replacement coefficient is Luebbers' lossy
+#: form on 1e7 S/m metal, whose Fresnel coefficients differ from +-1 by < 1 % at this grazing
+#: incidence (0.1 dB on the hard term); 1 dB leaves room for float32 and the transition function
+DIFFRACTION_TOL_DB = 1.0
+
+
+@pytest.mark.xfail(strict=True, reason="Sionna RT 2.2.0's stock diffraction matrix gives the "
+                   "hard polarization the soft coefficient (standards-and-limits.md 1d): V/V "
+                   "comes out ~40 dB low; passes once the replacement coefficient is in")
+def test_roof_edge_diffraction_polarization_is_kp_utd(make_tracer):
+    """A BS far in front of a metal block, a UE behind it at street level: the one path is the
+    back roof edge's diffraction, at normal incidence. In the antennas' bases the V port is the
+    hard polarization (E perpendicular to the horizontal edge) and H the soft one, with no
+    coupling between them; their amplitudes are the KP UTD ones (grazing incidence on the
+    roof: the soft field nearly cancels, hard ~40 dB stronger)."""
+    tr = make_tracer("pol_edge", {"blk": boxes([[-50, -30, 50, 0]], [15.0], "metal")})
+    bs, ue = np.array([0.0, 300.0, 25.0]), np.array([0.0, -35.0, 1.5])
+    fid = RayTracingConfig(max_depth=1, los=False, specular_reflection=False, diffraction=True)
+    tau, a, inter = link(tr, bs, ue, fid, rays=200_000)
+    assert len(tau) == 1 and inter[0, 0] == INTERACTION_DIFFRACTION
+    edge = np.array([0.0, -30.0, 15.0])
+    s_in, s_out = np.linalg.norm(edge - bs), np.linalg.norm(ue - edge)
+    phi_p = np.arctan2(bs[2] - edge[2], bs[1] - edge[1])               # above the roof (0-face)
+    phi = np.mod(np.arctan2(ue[2] - edge[2], ue[1] - edge[1]), 2 * np.pi)   # down the back wall
+    k = 2 * np.pi / LAM
+    ell = s_in * s_out / (s_in + s_out)
+    spread = LAM / (4 * np.pi * s_in) * np.sqrt(s_in / (s_out * (s_in + s_out)))
+    hard = abs(kp_utd(phi, phi_p, 1.5, k, ell, +1)) * spread
+    soft = abs(kp_utd(phi, phi_p, 1.5, k, ell, -1)) * spread
+    assert 20 * np.log10(abs(a[0, 0, 0]) / hard) == pytest.approx(0.0, abs=DIFFRACTION_TOL_DB)
+    assert 20 * np.log10(abs(a[0, 1, 1]) / soft) == pytest.approx(0.0, abs=DIFFRACTION_TOL_DB)
+    assert abs(a[0, 0, 1]) < 1e-3 * hard and abs(a[0, 1, 0]) < 1e-3 * hard
