@@ -55,13 +55,16 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path,
         t0 = time.perf_counter()
         raw = trace_links(tracer, tx, rx, direction == "reciprocal", rays)
         dt = time.perf_counter() - t0
+    pol = cfg.propagation.raytrace.polarization
+    raw = raw.project(pol.ue, pol.bs)
+    a = raw.a[..., 0, 0]
     tau = np.where(raw.valid, raw.tau, np.inf)
     first = tau.argmin(axis=1)
     has = raw.valid.any(axis=1)
     rows = np.arange(len(tau))
-    np.savez(out, tau=raw.tau, a=raw.a, valid=raw.valid, inter=raw.interactions, first_tau=np.where(has, tau[rows, first], np.nan),
-             first_pow=np.where(has, np.abs(raw.a[rows, first]) ** 2, np.nan),
-             total_pow=(np.abs(raw.a) ** 2 * raw.valid).sum(1), has=has, seconds=dt,
+    np.savez(out, tau=raw.tau, a=a, valid=raw.valid, inter=raw.interactions, first_tau=np.where(has, tau[rows, first], np.nan),
+             first_pow=np.where(has, np.abs(a[rows, first]) ** 2, np.nan),
+             total_pow=(np.abs(a) ** 2 * raw.valid).sum(1), has=has, seconds=dt,
              calls=tracer.stats["calls"], unique=tracer.stats["links_traced"],
              maxrss_gib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20)
 

@@ -119,6 +119,63 @@ class ArrayConfig:
                                     lo=-360.0, hi=360.0)
 
 
+#: single-port linear polarizations of a ray-traced antenna (TR 38.901 7.3.2 model-2 slant angles:
+#: see :data:`veriloc_rt.propagation.polarization.SLANT_ANGLES`)
+POLARIZATIONS = ("V", "H", "+45", "-45")
+
+
+@dataclass(frozen=True)
+class PolarizationConfig:
+    """Polarization of the antenna at each end of the ray-traced links.
+
+    Every antenna is one isotropic element with one port, linearly polarised along
+    ``cos(zeta) theta_hat + sin(zeta) phi_hat`` (TR 38.901 7.3.2, polarization model-2): 'V' is
+    theta-hat (vertical for a wave travelling horizontally), 'H' phi-hat (horizontal for every
+    direction), '+45'/'-45' the slants. The tracer keeps the full 2x2 polarimetric path matrix,
+    so these fields are applied after tracing and do not enter the ray-tracing cache key. The
+    UMa model ignores them (single vertical polarization, uma.py).
+    """
+
+    bs: str = param("V", "the BS's PRS port (TS 38.211 7.4.1.7: one antenna port, so one "
+                    "polarization)", choices=POLARIZATIONS)
+    ue: str = param("V", "the UE's port, the same on every ULA element", choices=POLARIZATIONS)
+    adversary: str = param("bs", "the adversary's one port, transmitting to the UE and receiving "
+                           "the BSs: 'bs' = the BSs' polarization (it impersonates or relays a "
+                           "BS with BS-type equipment), or an explicit one",
+                           choices=("bs",) + POLARIZATIONS)
+
+    def adversary_polarization(self) -> str:
+        """The adversary's polarization with 'bs' resolved."""
+        return self.bs if self.adversary == "bs" else self.adversary
+
+
+@dataclass(frozen=True)
+class MaterialsConfig:
+    """Surface scattering and depolarization, applied to every radio material of the scene
+    after it is loaded (canyon and external XML alike; the XML's own values are replaced)."""
+
+    scattering_coefficient: float = param(0.0, "S of Sionna RT's effective-roughness model "
+                                          "(Degli-Esposti 2007): the specular reflection "
+                                          "coefficient is scaled by sqrt(1 - S^2) and S^2 of the "
+                                          "reflected power is scattered diffusely (traced only "
+                                          "with diffuse_reflection)", lo=0.0, hi=1.0)
+    scattering_pattern: str = param("lambertian", "diffuse scattering pattern: 'lambertian', "
+                                    "'directive' (lobe around the specular direction, width "
+                                    "alpha_r) or 'backscattering' (forward lobe alpha_r, back "
+                                    "lobe alpha_i, split by backscatter_fraction)",
+                                    choices=("lambertian", "directive", "backscattering"))
+    alpha_r: int = param(1, "width exponent of the lobe around the specular direction "
+                         "(directive, backscattering; larger is narrower)", lo=1, hi=100)
+    alpha_i: int = param(1, "width exponent of the lobe around the incidence direction "
+                         "(backscattering)", lo=1, hi=100)
+    backscatter_fraction: float = param(0.0, "share of the diffuse power in the backward lobe "
+                                        "(backscattering; Sionna's 1 - Lambda)", lo=0.0, hi=1.0)
+    xpr_db: float = param(8.0, "cross-polarization ratio of diffusely scattered waves, co- to "
+                          "cross-polarised power (Sionna's K_x = 1 / (1 + 10^(xpr_db/10))); "
+                          "default: TR 38.901 Table 7.5-6 Part-1 UMi-Street Canyon NLOS mu_XPR. "
+                          "Sionna applies it to diffuse reflection only", lo=-30.0, hi=100.0)
+
+
 @dataclass(frozen=True)
 class RayTracingConfig:
     """Sionna RT fidelity knobs (every one trades time for accuracy)."""
@@ -144,7 +201,8 @@ class RayTracingConfig:
                                          "half-plane solution; 'sionna': Sionna RT's own "
                                          "coefficient, kept for comparison (docs/diffraction.md)",
                                          choices=("utd", "sionna"))
-    diffuse_reflection: bool = param(False, "diffuse scattering")
+    diffuse_reflection: bool = param(False, "trace diffusely scattered paths (needs "
+                                     "materials.scattering_coefficient > 0)")
     refraction: bool = param(False, "refraction through walls")
     max_paths_per_link: int = param(32, "keep the strongest N paths per link", lo=1, hi=4096)
     work_per_call: int = param(30_000_000, "bound on depth x rays x sources x targets per "
@@ -152,6 +210,15 @@ class RayTracingConfig:
                                "many entries, ~60 B each: bounds peak memory)", lo=100_000, hi=10**12)
     cache_dir: str = param(".veriloc-cache", "directory of the on-disk propagation cache "
                            "('' disables caching)")
+    polarization: PolarizationConfig = section(PolarizationConfig, "antenna polarizations")
+    materials: MaterialsConfig = section(MaterialsConfig, "surface scattering and "
+                                         "depolarization of every material")
+
+    def validate(self, path: str) -> None:
+        if self.diffuse_reflection and self.materials.scattering_coefficient == 0.0:
+            raise bad_value(f"{path}.diffuse_reflection", True,
+                            "false while materials.scattering_coefficient is 0 (nothing is "
+                            "scattered: diffuse tracing would only cost time)")
 
 
 @dataclass(frozen=True)

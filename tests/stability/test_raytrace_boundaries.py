@@ -87,7 +87,7 @@ def _cir(tracer, ues, bs=BS):
     """CIR [num_ues, 3] of the links bs -> UE, traced from the UE side."""
     p = len(ues)
     raw = trace_links(tracer, np.repeat(bs[None], p, 0).reshape(-1, 3), np.repeat(ues, 3, 0),
-                      reciprocal=True, rays=FID.rays_per_source)
+                      reciprocal=True, rays=FID.rays_per_source).project("V", "V")
     elem = ula_element_positions(5, 0.5 * SPEED_OF_LIGHT / FC, 0.0)
     return build_cir(raw, (p, 3), np.tile([0, 1, 2], (p, 1)), np.repeat(bs[None], p, 0), ues,
                      np.zeros((p, 3, 3)), np.zeros((p, 3)), FC, elem, FID.max_paths_per_link)

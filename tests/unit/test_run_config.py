@@ -36,6 +36,12 @@ def test_empty_config_is_the_default():
     ({"channel": {"prs_power": "boosted"}}, "channel.prs_power", "'occupied'"),
     ({"run": {"scenarios": ["none", "spoof"]}}, "run.scenarios[1]", "'fbs'"),
     ({"run": {"attack_start_fraction": 0.8}}, "run.attack_end_fraction", "attack_start_fraction"),
+    ({"propagation": {"raytrace": {"polarization": {"ue": "X"}}}},
+     "propagation.raytrace.polarization.ue", "'+45'"),
+    ({"propagation": {"raytrace": {"diffuse_reflection": True}}},
+     "propagation.raytrace.diffuse_reflection", "scattering_coefficient is 0"),
+    ({"propagation": {"raytrace": {"materials": {"scattering_coefficient": 1.5}}}},
+     "propagation.raytrace.materials.scattering_coefficient", "<= 1.0"),
 ])
 def test_bad_values_name_the_field(data, field, words):
     with pytest.raises(InputError) as exc:

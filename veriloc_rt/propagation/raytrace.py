@@ -19,8 +19,10 @@ leaves the others' paths unchanged: 90 of 90 links, measured), and a call costs 
 per link (0.033 against 0.034 s/link batched, 40 points of the paper canyon).
 
 In ``direction='reciprocal'`` (the default) rays are launched from the street-level end of each
-link (UE or adversary) and the result is reversed by reciprocity (isotropic, co-polarised antennas
-and reciprocal materials: same delays and gains, arrival and departure angles swapped). In a
+link (UE or adversary) and the result is reversed by reciprocity (reciprocal materials: same
+delays, arrival and departure angles swapped, and the 2x2 polarimetric path coefficient
+transposed, so any antenna polarization at either end is then applied in the physical
+direction; :mod:`~veriloc_rt.propagation.polarization`). In a
 canyon the roof edges that carry almost every BS link are a few metres from the UE, so they are
 sampled densely by few rays, whereas rays launched from a BS hundreds of metres away must be
 counted in millions to hit them.
@@ -51,6 +53,10 @@ log = logging.getLogger(__name__)
 
 #: Bump when the cached array layout or the tracing recipe changes
 CACHE_VERSION = 3
+
+#: RayTracingConfig fields that do not change what a PathSolver call returns (the cache holds
+#: polarimetric paths; antenna polarizations are applied after it)
+_NOT_IN_KEY = ("cache_dir", "work_per_call", "polarization")
 
 Progress = Callable[[int, int], None]
 
@@ -141,7 +147,7 @@ class LinkTracer:
 
     def _call_key(self, src: np.ndarray, dst: np.ndarray, pairs: np.ndarray, rays: int) -> str:
         if self._base_key is None:
-            fid = {k: v for k, v in to_dict(self.fid).items() if k not in ("cache_dir", "work_per_call")}
+            fid = {k: v for k, v in to_dict(self.fid).items() if k not in _NOT_IN_KEY}
             versions = {p: metadata.version(p) for p in ("sionna-rt", "mitsuba", "drjit")}
             self._base_key = json.dumps({"v": CACHE_VERSION, "scene": scene_digest(self.scene_xml),
                                          "fc": self.fc, "fid": fid, "seed": self.seed,
@@ -239,12 +245,13 @@ def trace_links(tracer: LinkTracer, tx: np.ndarray, rx: np.ndarray, reciprocal: 
     """Physical tx -> rx links; with ``reciprocal`` the rays start at the receiver.
 
     :returns: RawPaths in the physical orientation: ``theta_r/phi_r`` at the receiver,
-        ``theta_t/phi_t`` at the transmitter
+        ``theta_t/phi_t`` at the transmitter, ``a`` indexed (receiver port, transmitter port)
+        (reversed paths: the transposed polarimetric matrix, Lorentz reciprocity)
     """
     if not reciprocal:
         return tracer.trace(tx, rx, rays, progress)
     rev = tracer.trace(rx, tx, rays, progress)
-    return RawPaths(tau=rev.tau, a=rev.a, theta_r=rev.theta_t, phi_r=rev.phi_t,
+    return RawPaths(tau=rev.tau, a=np.swapaxes(rev.a, 2, 3), theta_r=rev.theta_t, phi_r=rev.phi_t,
                     theta_t=rev.theta_r, phi_t=rev.phi_r,
                     interactions=_reverse_interactions(rev.interactions), valid=rev.valid)
 
@@ -263,19 +270,23 @@ def build_cir(raw: RawPaths, shape: tuple[int, int], tx_index: np.ndarray, tx_po
               element_pos: np.ndarray | None, max_paths: int) -> CIR:
     """Physical-orientation raw links (row-major over ``shape`` = (points, slots)) -> CIR.
 
+    :param raw: single-port links (:meth:`RawPaths.project`)
     :param element_pos: [num_ant, 3] receive array element offsets (None: one antenna)
     :param v_tx: [P, T, 3] m/s; v_rx: [P, 3] m/s
     """
+    if raw.a.shape[2:] != (1, 1):
+        raise ValueError(f"build_cir needs single-port paths (RawPaths.project), not ports "
+                         f"{raw.a.shape[2:]}")
     raw = raw.keep_strongest(max_paths)
     P, T = shape
     if raw.tau.shape[1] == 0:   # no link has a path (e.g. no diffraction in a deep canyon):
-        raw = RawPaths.empty(raw.num_links, max(raw.interactions.shape[-1], 1))  # keep one slot
+        raw = RawPaths.empty(raw.num_links, max(raw.interactions.shape[-1], 1), (1, 1))  # one slot
     n = raw.tau.shape[1]
 
     def g(x):
         return x.reshape((P, T) + x.shape[1:])
 
-    tau, a, valid = g(raw.tau), g(raw.a), g(raw.valid)
+    tau, a, valid = g(raw.tau), g(raw.a[..., 0, 0]), g(raw.valid)
     aoa_az, aoa_zen, aod_az, aod_zen = g(raw.phi_r), g(raw.theta_r), g(raw.phi_t), g(raw.theta_t)
     lam = SPEED_OF_LIGHT / fc
     if element_pos is None:
@@ -333,9 +344,13 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     cb = (lambda done, _n: progress(done, total)) if progress else None
     t0 = time.perf_counter()
     raw = trace_links(tracer, tx_links, rx_links, recip, fid.rays_per_source, cb)
-    raw_bs_ue = _take(raw, np.arange(n))
-    raw_bs_adv = _scatter(_take(raw, np.arange(n, n + m)), np.repeat(act, 3) * 3 + np.tile(np.arange(3), len(act)), n)
-    raw_adv = _scatter(_take(raw, np.arange(n + m, total)), act, P)
+    # antenna polarizations in the physical direction (receiver port, transmitter port)
+    pol = fid.polarization
+    bs_p, ue_p, adv_p = pol.bs, pol.ue, pol.adversary_polarization()
+    raw_bs_ue = _take(raw, np.arange(n)).project(ue_p, bs_p)
+    raw_bs_adv = _scatter(_take(raw, np.arange(n, n + m)).project(adv_p, bs_p),
+                          np.repeat(act, 3) * 3 + np.tile(np.arange(3), len(act)), n)
+    raw_adv = _scatter(_take(raw, np.arange(n + m, total)).project(ue_p, adv_p), act, P)
     mp = fid.max_paths_per_link
     adv_slot = np.where(active[:, None], serving, NO_TX)
     bs_ue = build_cir(raw_bs_ue, (P, 3), serving, bs_tx, ue.pos, zeros_v, ue.vel, fc, elem, mp)

@@ -1,21 +1,24 @@
 """Thin, batched wrapper around Sionna RT's PathSolver.
 
 It knows nothing of trajectories: it traces (one transmitter, many receivers) groups and
-returns raw per-link paths in float64 / complex128, with invalid paths masked. Antenna arrays
-are single isotropic, vertically polarised elements at both ends; the UE's ULA is applied
-afterwards from the arrival angles (the synthetic-array model), so one trace serves any array.
+returns raw per-link paths in float64 / complex128, with invalid paths masked. Both ends are one
+isotropic dual-polarised element ('VH': theta-hat and phi-hat ports), so every path carries its
+2x2 polarimetric coefficient and any single-port polarization is applied afterwards
+(:mod:`~veriloc_rt.propagation.polarization`); the UE's ULA is applied afterwards from the arrival
+angles (the synthetic-array model). One trace serves any array and any polarization.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..backend import import_sionna
 from ..config import RayTracingConfig
+from .polarization import apply_materials
 
 log = logging.getLogger(__name__)
 
@@ -24,7 +27,10 @@ log = logging.getLogger(__name__)
 class RawPaths:
     """Paths of ``num_links`` links, padded to ``num_paths``.
 
-    tau : [num_links, num_paths] float64, s;  a : [num_links, num_paths] complex128
+    tau : [num_links, num_paths] float64, s
+    a : [num_links, num_paths, num_rx_ports, num_tx_ports] complex128, path coefficient per
+        (receive port, transmit port): 2x2 polarimetric (theta-hat, phi-hat) as traced, 1x1
+        after :meth:`project`
     theta_r, phi_r, theta_t, phi_t : [num_links, num_paths] float64, rad
     interactions : [num_links, num_paths, max_depth] uint8;  valid : [num_links, num_paths] bool
     """
@@ -44,22 +50,38 @@ class RawPaths:
     def num_links(self) -> int:
         return self.tau.shape[0]
 
+    def project(self, rx: str, tx: str) -> "RawPaths":
+        """Single-port coefficients (``a`` becomes [..., 1, 1]) for polarizations ``rx``, ``tx``.
+
+        As Sionna RT does for a path whose coefficient is zero for every antenna pair, a path
+        the two ports do not couple at all (exactly 0) is dropped.
+        """
+        from .polarization import project
+
+        a = project(self.a, rx, tx)
+        valid = self.valid & (a != 0)
+        return replace(self, a=np.where(valid, a, 0.0)[..., None, None], valid=valid,
+                       tau=np.where(valid, self.tau, -1.0))
+
     def keep_strongest(self, max_paths: int) -> "RawPaths":
-        """At most ``max_paths`` paths per link (the strongest), then sorted by delay."""
-        power = np.where(self.valid, np.abs(self.a) ** 2, -1.0)
+        """At most ``max_paths`` paths per link (the strongest: power summed over the port
+        pairs), then sorted by delay."""
+        power = np.where(self.valid, np.sum(np.abs(self.a) ** 2, axis=(2, 3)), -1.0)
         n = min(max_paths, self.tau.shape[1])
         top = np.argsort(-power, axis=1, kind="stable")[:, :n]
         tau_top = np.take_along_axis(np.where(self.valid, self.tau, np.inf), top, axis=1)
         order = np.take_along_axis(top, np.argsort(tau_top, axis=1, kind="stable"), axis=1)
-        pick = {f: np.take_along_axis(getattr(self, f), order if getattr(self, f).ndim == 2
-                                      else order[..., None], axis=1) for f in self.FIELDS}
+        pick = {f: np.take_along_axis(getattr(self, f), order.reshape(
+            order.shape + (1,) * (getattr(self, f).ndim - 2)), axis=1) for f in self.FIELDS}
         return RawPaths(**pick)
 
     @classmethod
-    def empty(cls, num_links: int, max_depth: int) -> "RawPaths":
+    def empty(cls, num_links: int, max_depth: int,
+              num_ports: tuple[int, int] = (2, 2)) -> "RawPaths":
         """``num_links`` links without a path (one invalid padding path each)."""
         z = np.zeros((num_links, 1))
-        return cls(tau=np.full((num_links, 1), -1.0), a=z.astype(np.complex128), theta_r=z.copy(),
+        return cls(tau=np.full((num_links, 1), -1.0),
+                   a=np.zeros((num_links, 1) + tuple(num_ports), np.complex128), theta_r=z.copy(),
                    phi_r=z.copy(), theta_t=z.copy(), phi_t=z.copy(),
                    interactions=np.zeros((num_links, 1, max_depth), np.uint8),
                    valid=np.zeros((num_links, 1), bool))
@@ -73,7 +95,9 @@ class RawPaths:
             arrs = []
             for p in parts:
                 x = getattr(p, f)
-                pad = [(0, 0), (0, width - x.shape[1])] + ([(0, depth - x.shape[2])] if x.ndim == 3 else [])
+                pad = [(0, 0), (0, width - x.shape[1])] + [(0, 0)] * (x.ndim - 2)
+                if f == "interactions":
+                    pad[2] = (0, depth - x.shape[2])
                 arrs.append(np.pad(x, pad))
             out[f] = np.concatenate(arrs, axis=0)
         out["tau"] = np.where(out["valid"], out["tau"], -1.0)
@@ -110,8 +134,8 @@ class SionnaTracer:
             raise ValueError("`diffraction_coefficient` must be 'utd' or 'sionna', "
                              f"not {diffraction_coefficient!r}")
         self.scene.frequency = frequency
-        self.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
-        self.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="V")
+        self.scene.tx_array, self.scene.rx_array = polarimetric_arrays(rt)
+        self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
         self.seed = int(seed) % (2**31 - 1)
         self.max_paths_per_src = 10**6
@@ -126,6 +150,9 @@ class SionnaTracer:
         :returns: one row per returned pair
         """
         rt, scene = self._rt, self.scene
+        if fid.materials != self._materials:
+            apply_materials(scene, fid.materials)
+            self._materials = fid.materials
         tx_pos = np.atleast_2d(tx_pos)
         rx_pos = np.atleast_2d(rx_pos)
         for name in list(scene.transmitters):
@@ -145,8 +172,15 @@ class SionnaTracer:
         return _extract(paths, len(tx_pos), len(rx_pos), pairs)
 
 
+def polarimetric_arrays(rt) -> tuple:
+    """(tx_array, rx_array): one isotropic element with a theta-hat and a phi-hat port each
+    (Sionna 'VH' = slant angles 0 and pi/2 under TR 38.901 polarization model-2)."""
+    return tuple(rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization="VH")
+                 for _ in range(2))
+
+
 def _extract(paths, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPaths:
-    """Sionna tensors -> float64 arrays [num_links, num_paths] in (tx, rx) pair order."""
+    """Sionna tensors -> float64 arrays [num_links, num_paths, ...] in (tx, rx) pair order."""
     def arr(x, dtype=np.float64):
         return np.asarray(x, dtype=dtype)
 
@@ -154,7 +188,8 @@ def _extract(paths, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPa
     num_paths = tau.shape[-1]
     shape = (num_rx, num_tx, num_paths)
     tau = tau.reshape(shape)
-    a = (arr(paths.a[0]) + 1j * arr(paths.a[1])).reshape(shape)  # [R, 1, T, 1, N]
+    a = arr(paths.a[0]) + 1j * arr(paths.a[1])             # [R, rx ports, T, tx ports, N]
+    a = np.moveaxis(a.reshape(num_rx, a.shape[1], num_tx, a.shape[3], num_paths), (1, 3), (3, 4))
     valid = arr(paths.valid, bool).reshape(shape)
     th_r, ph_r = arr(paths.theta_r).reshape(shape), arr(paths.phi_r).reshape(shape)
     th_t, ph_t = arr(paths.theta_t).reshape(shape), arr(paths.phi_t).reshape(shape)
@@ -172,7 +207,7 @@ def _extract(paths, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPa
         return x[r_idx, t_idx]
 
     v = pick(valid)
-    return RawPaths(tau=np.where(v, pick(tau), -1.0), a=np.where(v, pick(a), 0.0),
+    return RawPaths(tau=np.where(v, pick(tau), -1.0), a=np.where(v[..., None, None], pick(a), 0.0),
                     theta_r=np.where(v, pick(th_r), 0.0), phi_r=np.where(v, pick(ph_r), 0.0),
                     theta_t=np.where(v, pick(th_t), 0.0), phi_t=np.where(v, pick(ph_t), 0.0),
                     interactions=np.where(v[..., None], pick(inter), 0).astype(np.uint8),
