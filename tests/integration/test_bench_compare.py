@@ -66,11 +66,18 @@ def test_bench_files_and_numbers(bench_out):
                            for o in grp), r["label"]
     rt_ref = next(r for r in rows if r["group"] == "raytrace" and r["role"] == "reference")
     assert float(rt_ref["first_path_dev_m_p95"]) == 0.0
-    assert float(rt_ref["first_path_off_pct"]) == 0.0     # the ray-tracing front's accuracy axis
+    assert float(rt_ref["first_path_off_pct"]) == 0.0
+    assert float(rt_ref["power_off_pct"]) == 0.0          # the ray-tracing front's accuracy axis
+    assert float(rt_ref["power_dev_db_p50"]) == 0.0 and float(rt_ref["power_absdev_db_p90"]) == 0.0
+    assert float(rt_ref["strongest_found_pct"]) == 100.0
+    assert float(rt_ref["first_rel_power_absdev_db_p90"]) == 0.0
     for r in rows:
-        if r["group"] == "raytrace":   # a lost or gained path counts as off: at least the coverage gap
+        if r["group"] == "raytrace":   # a lost or gained link counts as off: at least the coverage gap
             gap = abs(float(r["links_with_path_pct"]) - float(rt_ref["links_with_path_pct"]))
             assert float(r["first_path_off_pct"]) >= gap - 1e-9
+            assert float(r["power_off_pct"]) >= gap - 1e-9
+            assert 0.0 <= float(r["strongest_found_pct"]) <= 100.0
+            assert float(r["first_rel_power_db_p50"]) <= 0.0   # the first path is never stronger
     meta = json.loads((bench_out / "bench.json").read_text())["meta"]
     assert meta["num_points"] == 4 and meta["quick"] is True
 

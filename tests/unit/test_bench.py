@@ -108,3 +108,80 @@ def test_position_off_share_by_hand():
     assert m["position_off_pct"] == pytest.approx(60.0)
     assert m["fix_mismatch_pct"] == pytest.approx(40.0)
     assert _chain_deviation(mk(ref_pos), mk(ref_pos))["position_off_pct"] == 0.0
+
+
+def _cir(links: list[list[tuple]], depth: int):
+    """A one-point CIR from per-slot [(tau s, power, (codes...)), ...], two UE antennas whose
+    gains differ in phase only (as the synthetic array's)."""
+    import numpy as np
+
+    from veriloc_rt.propagation.cir import CIR
+
+    b, n = len(links), max(1, max(len(p) for p in links))
+    tau = np.full((1, b, n), -1.0)
+    gains = np.zeros((1, b, 2, n), complex)
+    inter = np.zeros((1, b, n, depth), np.uint8)
+    valid = np.zeros((1, b, n), bool)
+    for i, link in enumerate(links):
+        for j, (t, p, seq) in enumerate(link):
+            tau[0, i, j], valid[0, i, j] = t, True
+            gains[0, i, :, j] = np.sqrt(p) * np.exp(1j * np.array([0.3, 1.9]))
+            inter[0, i, j, :len(seq)] = seq
+    z = np.zeros((1, b, n))
+    return CIR(delays=tau, gains=gains, aoa_az=z, aoa_zen=z + 1.5, aod_az=z, aod_zen=z + 1.5,
+               doppler=z, interactions=inter, valid=valid, tx_index=np.arange(b)[None],
+               tx_pos=np.zeros((1, b, 3)), rx_pos=np.zeros((1, 3)),
+               los=np.zeros((1, b), bool), carrier_frequency=3.5e9)
+
+
+def test_channel_deviation_power_axes_by_hand():
+    # Three serving links, D = diffraction (8), R = reflection (1), delays in us:
+    #   link 0: ref D 1.00 (1), DR 1.01 (4), DRR 1.02 (1) pW; the setting misses the DR:
+    #           P 2 vs 6 -> -4.7712 dB (off), strongest lost; first/strongest: setting D vs its
+    #           tie D/DRR -> 0 dB, reference 1/4 -> -6.0206 dB
+    #   link 1: ref D 2.00 (2); the setting adds DR 2.05 (1): P 3 vs 2 -> +1.7609 dB (not off),
+    #           strongest found, first/strongest 0 dB in both
+    #   link 2: ref D 3.00 (1); the setting has no path: -inf dB (off), strongest lost, no first
+    # -> signed p50 of [-inf, -4.7712, 1.7609] is -4.7712; |dev| p90 of [1.76, 4.77, inf] is inf;
+    #    2 of 3 off; strongest found 1 of 3; first/strongest p50 of [0, 0] = 0; its deviation
+    #    p90 of [6.0206, 0] = 6.0206; first path off (lost) 1 of 3
+    import numpy as np
+
+    from veriloc_rt.bench import POWER_TOL_DB, _channel_deviation
+
+    us = 1e-6
+    D, R = 8, 1
+    ref = _cir([[(1.00 * us, 1e-12, (D,)), (1.01 * us, 4e-12, (D, R)), (1.02 * us, 1e-12, (D, R, R))],
+                [(2.00 * us, 2e-12, (D,))], [(3.00 * us, 1e-12, (D,))]], depth=4)
+    run = _cir([[(1.00 * us, 1e-12, (D,)), (1.02 * us, 1e-12, (D, R, R))],
+                [(2.00 * us, 2e-12, (D,)), (2.05 * us, 1e-12, (D, R))], []], depth=3)
+    assert POWER_TOL_DB == 3.0
+    m = _channel_deviation(run, ref, np.array([0]))
+    tol = 1e-4   # dB, the worked values are rounded to 4 decimals
+    assert m["power_dev_db_p50"] == pytest.approx(-4.7712, abs=tol)
+    assert m["power_absdev_db_p90"] == np.inf
+    assert m["power_off_pct"] == pytest.approx(200 / 3)
+    assert m["strongest_found_pct"] == pytest.approx(100 / 3)
+    assert m["first_rel_power_db_p50"] == pytest.approx(0.0, abs=tol)
+    assert m["first_rel_power_absdev_db_p90"] == pytest.approx(6.0206, abs=tol)
+    assert m["first_path_off_pct"] == pytest.approx(100 / 3)
+    # against itself: nothing off, everything found
+    s = _channel_deviation(ref, ref, np.array([0]))
+    assert (s["power_dev_db_p50"], s["power_absdev_db_p90"], s["power_off_pct"]) == (0.0, 0.0, 0.0)
+    assert s["strongest_found_pct"] == 100.0 and s["first_rel_power_absdev_db_p90"] == 0.0
+
+
+def test_sweep_settings_full_raytrace_reference_is_the_converged_one():
+    from veriloc_rt.bench import RAYTRACE_REFERENCE
+
+    cfg = config_from_dict({})
+    ref = next(x for x in sweep_settings(cfg) if x.group == "raytrace" and x.role == "reference")
+    # the study's converged level (docs/convergence.md), not the rays knob's highest level
+    assert ref.patch["propagation.raytrace.rays_per_source"] == 10_000_000
+    assert ref.patch["propagation.raytrace.max_depth"] == 4
+    for path, v in RAYTRACE_REFERENCE.items():
+        assert ref.patch[path] == v
+    # the crop margin and diffraction stay at their highest levels
+    assert ref.patch["scene.margin_m"] == 300.0 and ref.patch["propagation.raytrace.diffraction"] is True
+    # a UE's three links fit one PathSolver call: 3 targets x depth x rays <= work_per_call
+    assert 3 * 4 * 10_000_000 <= ref.patch["propagation.raytrace.work_per_call"]

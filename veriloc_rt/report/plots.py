@@ -321,11 +321,13 @@ def read_results_csv(path: str | Path) -> dict[str, np.ndarray]:
     return out
 
 
-def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) -> None:
+def plot_pareto(rows: list[dict], path: str | Path, y_axis: dict[str, tuple[str, str]],
+                title: str | None = None) -> None:
     """Time against accuracy of a fidelity sweep (``veriloc-rt bench``), one panel per group.
 
     :param rows: bench rows (``veriloc_rt.bench``): group, label, role, time_s, time_unit,
-        pareto, first_path_off_pct (ray tracing) or position_off_pct (waveform). x:
+        pareto and each group's accuracy metric
+    :param y_axis: per group, (the row key of its accuracy metric, the axis label). x:
         seconds per link or point (log); y: that deviation from the reference (log, with the
         reference, 0 by definition, drawn at the axis floor; an infinite deviation, a link lost
         or gained, on a dotted band above the rest); the Pareto front joined by a line, the
@@ -338,7 +340,7 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
                  squeeze=False) as (fig, axes):
         for ax, g in zip(axes[0], groups):
             grp = [r for r in rows if r["group"] == g]
-            key = "first_path_off_pct" if g == "raytrace" else "position_off_pct"
+            key, y_label = y_axis[g]
             dev = np.array([np.nan if r.get(key) is None else r[key] for r in grp], dtype=float)
             t = np.array([r["time_s"] for r in grp], dtype=float)
             pos = dev[np.isfinite(dev) & (dev > 0)]
@@ -384,8 +386,7 @@ def plot_pareto(rows: list[dict], path: str | Path, title: str | None = None) ->
                 ax.set_ylim(top=top * 12)
             unit = grp[0]["time_unit"]
             ax.set_xlabel(f"seconds per {unit}")
-            ax.set_ylabel("links whose first path is lost or > 1 m off the reference, %" if g == "raytrace"
-                          else "points whose DL fix is lost or > 1 m off the reference, %")
+            ax.set_ylabel(y_label)
             ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(loc="lower left", fontsize=8)
