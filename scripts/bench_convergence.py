@@ -194,6 +194,13 @@ def trace_setting(setting: dict, cfg_data: dict, scene_xml: Path, tx, rx, work: 
         kept = out
     with np.load(kept) as d:
         r = {k: d[k] for k in d.files}
+    if r["a"].ndim == 4:    # polarimetric [link, path, rx port, tx port]: the config's ports
+        from veriloc_rt.config import config_from_dict
+        from veriloc_rt.propagation.polarization import project
+
+        pol = config_from_dict(cfg_data).propagation.raytrace.polarization
+        r["a"] = project(r["a"], pol.ue, pol.bs)
+        r["valid"] = r["valid"] & (r["a"] != 0)
     r["power"] = np.abs(r["a"]) ** 2
     return r
 
