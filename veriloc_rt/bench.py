@@ -113,12 +113,10 @@ FIRST_PATH_TOL_M = 1.0
 #: 15 m success threshold; a first-path decision that flips moves a fix by metres)
 POSITION_TOL_M = 1.0
 #: relative cost resolution of the front: costs closer than this count as equal. Rows that do
-#: the same work were timed this far apart within one sweep: waveform rows that only change
-#: ``nr.sample_rate_hz`` (identical per-RE computation) 0.072-0.085 s/point against the config's
-#: 0.080 (120 points, 2026-11-23); the ray-tracing crop margins 60, 150 and 300 m, whose cost
-#: does not grow with the crop in the default canyon, 0.0223-0.0239 s/link (120 points,
-#: 2026-11-24: the largest crop timed 7 % *cheaper* than the default's). A setting less than 10 %
-#: cheaper is not measurably cheaper on this machine
+#: the same work (waveform rows that only change ``nr.sample_rate_hz``; ray-tracing crop margins,
+#: whose cost does not grow with the crop in the default canyon) were timed up to 7 % apart
+#: within one sweep (docs/performance history in the README's bench section), so a setting less
+#: than 10 % cheaper is not measurably cheaper on this machine
 COST_RTOL = 0.10
 #: time-domain settings apply the paths at sample_rate / TIME_DECIMATION (clipped by the chain to
 #: the smallest FFT that holds the band)
