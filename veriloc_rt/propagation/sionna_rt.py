@@ -18,7 +18,7 @@ import numpy as np
 
 from ..backend import import_sionna
 from ..config import RayTracingConfig
-from .polarization import apply_materials
+from .polarization import apply_materials, project
 
 log = logging.getLogger(__name__)
 
@@ -56,8 +56,6 @@ class RawPaths:
         As Sionna RT does for a path whose coefficient is zero for every antenna pair, a path
         the two ports do not couple at all (exactly 0) is dropped.
         """
-        from .polarization import project
-
         a = project(self.a, rx, tx)
         valid = self.valid & (a != 0)
         return replace(self, a=np.where(valid, a, 0.0)[..., None, None], valid=valid,

@@ -82,13 +82,9 @@ class Harness:
     def __init__(self, xml, coefficient: str):
         from veriloc_rt.propagation.sionna_rt import SionnaTracer
 
+        # the tracer's arrays are already one isotropic (V, H) element at each end
         self.tracer = SionnaTracer(xml, FC, seed=1, diffraction_coefficient=coefficient)
-        rt = self.tracer._rt
-        self.rt = rt
-        self.tracer.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso",
-                                                    polarization="VH")
-        self.tracer.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso",
-                                                    polarization="VH")
+        self.rt = self.tracer._rt
 
     def paths(self, src, dst, rays, edge_diffraction=False):
         """[(length m, interactions, Jones [rx pol, tx pol])] of single-interaction paths."""
