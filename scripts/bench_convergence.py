@@ -89,24 +89,29 @@ FIRST_PATH_TOL_M = 1.0
 
 
 def parse_setting(spec: str) -> dict:
-    """direction:depth:rays[:nd][:s<seed>] -> setting dict (seed None: the config's)."""
+    """direction:depth:rays[:nd][:s<seed>][:ex|:sa] -> setting dict (seed None: the config's;
+    ':ex' / ':sa' set propagation.raytrace.edge_candidates to 'exhaustive' / 'sampled', none:
+    the config's)."""
     parts = spec.split(":")
     extra = parts[3:]
     ok = len(parts) >= 3 and parts[0] in ("reciprocal", "forward") and \
-        all(e in ("nd", "det") or (e[:1] == "s" and e[1:].isdigit()) for e in extra)
+        all(e in ("nd", "det", "ex", "sa") or (e[:1] == "s" and e[1:].isdigit()) for e in extra)
     if not ok:
-        raise SystemExit(f"error: setting {spec!r}: expected direction:depth:rays[:nd][:s<seed>], "
+        raise SystemExit(f"error: setting {spec!r}: expected "
+                         "direction:depth:rays[:nd][:s<seed>][:ex|:sa], "
                          "direction 'reciprocal' or 'forward'")
-    seed = next((int(e[1:]) for e in extra if e[:1] == "s"), None)
+    seed = next((int(e[1:]) for e in extra if e[:1] == "s" and e[1:].isdigit()), None)
+    edge = "exhaustive" if "ex" in extra else "sampled" if "sa" in extra else None
     return {"direction": parts[0], "max_depth": int(parts[1]),
             "rays_per_source": int(float(parts[2])), "deterministic": "nd" not in extra,
-            "seed": seed}
+            "seed": seed, "edge_candidates": edge}
 
 
 def label(s: dict) -> str:
     return (f"{s['direction'][:3]} d{s['max_depth']} {s['rays_per_source']:.0e}"
             + ("" if s["deterministic"] else " nd")
-            + ("" if s.get("seed") is None else f" s{s['seed']}"))
+            + ("" if s.get("seed") is None else f" s{s['seed']}")
+            + ("" if s.get("edge_candidates") is None else f" {s['edge_candidates'][:2]}"))
 
 
 def patched(data: dict, patch: dict) -> dict:
@@ -135,7 +140,9 @@ def child(job: Path, out: Path) -> None:
     cfg = config_from_dict(patched(spec["config"], {
         "propagation.raytrace.direction": s["direction"],
         "propagation.raytrace.max_depth": s["max_depth"],
-        "propagation.raytrace.rays_per_source": s["rays_per_source"]}))
+        "propagation.raytrace.rays_per_source": s["rays_per_source"]}
+        | ({} if s.get("edge_candidates") is None else
+           {"propagation.raytrace.edge_candidates": s["edge_candidates"]})))
     fid = cfg.propagation.raytrace
     seed = cfg.seed if s.get("seed") is None else s["seed"]
     tracer = LinkTracer(spec["scene_xml"], cfg.propagation.carrier_frequency_hz, fid, seed,

@@ -201,6 +201,20 @@ class RayTracingConfig:
                                          "half-plane solution; 'sionna': Sionna RT's own "
                                          "coefficient, kept for comparison (docs/diffraction.md)",
                                          choices=("utd", "sionna"))
+    edge_candidates: str = param("exhaustive", "'exhaustive': besides Sionna RT's sampled "
+                                 "candidates, every first-order diffraction path that reflects "
+                                 "on planes near its two ends ([R...] D [R...], every wedge of "
+                                 "the scene) is enumerated and solved by Sionna's image method "
+                                 "(veriloc_rt.propagation.street_paths; docs/convergence.md); "
+                                 "'sampled': Sionna RT's candidates alone",
+                                 choices=("exhaustive", "sampled"))
+    candidate_plane_distance_m: float = param(20.0, "'exhaustive' candidates reflect on planes "
+                                              "within this distance of a link's end",
+                                              lo=0.0, hi=1000.0)
+    candidate_target_reflections: int = param(2, "'exhaustive' candidates: at most this many "
+                                              "reflections between the edge and the Sionna "
+                                              "target (the BS when tracing 'reciprocal')",
+                                              lo=0, hi=10)
     diffuse_reflection: bool = param(False, "trace diffusely scattered paths (needs "
                                      "materials.scattering_coefficient > 0)")
     refraction: bool = param(False, "refraction through walls")

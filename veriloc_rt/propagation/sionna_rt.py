@@ -19,6 +19,7 @@ import numpy as np
 from ..backend import import_sionna
 from ..config import RayTracingConfig
 from .polarization import apply_materials, project
+from .street_paths import duplicates
 
 log = logging.getLogger(__name__)
 
@@ -84,6 +85,33 @@ class RawPaths:
                    interactions=np.zeros((num_links, 1, max_depth), np.uint8),
                    valid=np.zeros((num_links, 1), bool))
 
+    def merge(self, other: "RawPaths") -> "RawPaths":
+        """The paths of both (same links), each distinct path once
+        (:func:`.street_paths.duplicates`), in the order self, other."""
+        both = {f: np.concatenate([getattr(self, f), getattr(other, f)], axis=1)
+                if f != "interactions" else None for f in self.FIELDS}
+        depth = max(self.interactions.shape[2], other.interactions.shape[2])
+        both["interactions"] = np.concatenate(
+            [np.pad(x.interactions, [(0, 0), (0, 0), (0, depth - x.interactions.shape[2])])
+             for x in (self, other)], axis=1)
+        angles = np.stack([both[f] for f in ("theta_r", "phi_r", "theta_t", "phi_t")], axis=-1)
+        dup = duplicates(both["tau"], angles, both["interactions"], both["valid"])
+        keep = both["valid"] & ~dup
+        order = np.argsort(~keep, axis=1, kind="stable")[:, :max(int(keep.sum(1).max()), 1)]
+        out = {}
+        for f in self.FIELDS:
+            x = np.take_along_axis(both[f], order.reshape(order.shape + (1,) * (both[f].ndim - 2)),
+                                   axis=1)
+            out[f] = x
+        v = np.take_along_axis(keep, order, axis=1)
+        out["valid"] = v
+        out["tau"] = np.where(v, out["tau"], -1.0)
+        out["a"] = np.where(v[..., None, None], out["a"], 0.0)
+        for f in ("theta_r", "phi_r", "theta_t", "phi_t"):      # as _extract pads
+            out[f] = np.where(v, out[f], 0.0)
+        out["interactions"] = np.where(v[..., None], out["interactions"], 0).astype(np.uint8)
+        return RawPaths(**out)
+
     @staticmethod
     def concat(parts: list["RawPaths"]) -> "RawPaths":
         width = max(p.tau.shape[1] for p in parts)
@@ -135,8 +163,23 @@ class SionnaTracer:
         self.scene.tx_array, self.scene.rx_array = polarimetric_arrays(rt)
         self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
+        self._edge_solvers: dict = {}   # (plane distance, target reflections) -> PathSolver
         self.seed = int(seed) % (2**31 - 1)
         self.max_paths_per_src = 10**6
+        self.last_num_edge_candidates = 0
+
+    def _edge_solver(self, fid: RayTracingConfig):
+        """A PathSolver whose candidates are the exhaustive edge-diffraction ones."""
+        key = (fid.candidate_plane_distance_m, fid.candidate_target_reflections)
+        if key not in self._edge_solvers:
+            # deferred: the module needs the Mitsuba variant import_sionna() selected
+            from .street_solver import StreetCandidateGenerator
+            solver = self._rt.PathSolver()
+            # Sionna's PathSolver has no public hook for the candidate generator: its
+            # attribute is replaced (pinned Sionna RT version, tests/unit/propagation)
+            solver._candidate_generator = StreetCandidateGenerator(self.scene.mi_scene, *key)
+            self._edge_solvers[key] = solver
+        return self._edge_solvers[key]
 
     def trace(self, tx_pos: np.ndarray, rx_pos: np.ndarray, fid: RayTracingConfig,
               rays_per_source: int, pairs: np.ndarray | None = None) -> RawPaths:
@@ -167,7 +210,16 @@ class SionnaTracer:
                             diffuse_reflection=fid.diffuse_reflection,
                             refraction=fid.refraction, diffraction=fid.diffraction,
                             seed=self.seed)
-        return _extract(paths, len(tx_pos), len(rx_pos), pairs)
+        raw = _extract(paths, len(tx_pos), len(rx_pos), pairs)
+        if fid.edge_candidates == "exhaustive" and fid.diffraction and fid.max_depth >= 1:
+            solver = self._edge_solver(fid)
+            paths = solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=10**9,
+                           samples_per_src=rays_per_source, synthetic_array=True, los=False,
+                           specular_reflection=True, diffuse_reflection=False,
+                           refraction=False, diffraction=True, seed=self.seed)
+            self.last_num_edge_candidates = solver._candidate_generator.last_num_candidates
+            raw = raw.merge(_extract(paths, len(tx_pos), len(rx_pos), pairs))
+        return raw
 
 
 def polarimetric_arrays(rt) -> tuple:

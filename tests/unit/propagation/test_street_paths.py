@@ -1,0 +1,138 @@
+"""Exhaustive edge-diffraction candidates (veriloc_rt.propagation.street_paths).
+
+Independent references: Fermat's principle (the diffraction point makes the path length
+stationary, found here by Brent's root of its slope); the reflection chains a ray can follow between two
+facing walls and the ground; the image method for a wall reflection; and
+Sionna RT's own shoot-and-bounce candidates at a high ray count, whose paths the exhaustive
+candidates must contain with the same coefficients (same image method and field calculator,
+another way to find the candidate).
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from veriloc_rt.config import RayTracingConfig
+from veriloc_rt.constants import SPEED_OF_LIGHT
+from veriloc_rt.propagation import street_paths as sp
+
+from .rt_scenes import boxes, ground, write_test_scene
+
+FC = 3.5e9
+#: float64 closed form against Brent's root of the path-length slope (xtol 1e-12 m)
+KELLER_TOL_M = 1e-6
+#: float32 delays of the image method: ~1e-14 s; 1 ps is 0.3 mm of path length
+DELAY_TOL_S = 1e-12
+#: one path computed twice by the same float32 field calculator: equal to float32 rounding
+SAME_PATH_POWER_TOL_DB = 0.01
+
+
+def test_keller_point_minimises_the_path_length():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        s, t, a = rng.normal(size=(3, 3)) * [30.0, 30.0, 10.0]
+        e = rng.normal(size=3)
+        e /= np.linalg.norm(e)
+        x = sp.keller_point(s, t, a, e)
+
+        def slope(u):     # d(path length)/du: zero at the stationary (Fermat) point
+            p = a + u * e
+            return np.dot(p - s, e) / np.linalg.norm(p - s) - np.dot(t - p, e) / np.linalg.norm(t - p)
+        ref = brentq(slope, -1e4, 1e4, xtol=1e-12)
+        assert abs(x - ref) < KELLER_TOL_M
+
+
+def test_matrix_keller_equals_the_pointwise_one():
+    rng = np.random.default_rng(4)
+    S, T = rng.normal(size=(2, 7, 3)) * 40.0
+    a = rng.normal(size=(11, 3)) * 40.0
+    e = rng.normal(size=(11, 3))
+    e /= np.linalg.norm(e, axis=1, keepdims=True)
+    n = rng.normal(size=(11, 2, 3))
+    x, _ = sp._keller_on_edges(S, T, a, e, np.full(11, 1e3), n)
+    ref = sp.keller_point(S[:, None], T[:, None], a[None], e[None])
+    np.testing.assert_allclose(x, ref, atol=KELLER_TOL_M)
+
+
+def _street_geometry() -> sp.SceneGeometry:
+    """Two facing walls 5 m apart (y = -2.5 facing +y, y = 2.5 facing -y) and the ground."""
+    v = np.array([[-50, -2.5, 0], [50, -2.5, 0], [50, -2.5, 15], [-50, -2.5, 15],
+                  [-50, 2.5, 0], [50, 2.5, 0], [50, 2.5, 15], [-50, 2.5, 15],
+                  [-50, -50, 0], [50, -50, 0], [50, 50, 0], [-50, 50, 0]], float)
+    f = np.array([[0, 2, 1], [0, 3, 2],          # normal +y
+                  [4, 5, 6], [4, 6, 7],          # normal -y
+                  [8, 9, 10], [8, 10, 11]])      # ground, +z
+    return sp.SceneGeometry.from_meshes([(1, v, f)])
+
+
+def test_reflection_chains_alternate_between_reachable_planes():
+    geo = _street_geometry()
+    assert geo.num_planes == 3
+    src = np.array([0.0, 0.5, 1.5])
+    planes = sp._near_planes(geo, src, 20.0)
+    seqs, imgs = sp.sequences(geo, src, planes, 3)
+    wall_lo = next(p for p in planes if geo.plane_n[p][1] > 0.5)
+    wall_hi = next(p for p in planes if geo.plane_n[p][1] < -0.5)
+    ground_ = next(p for p in planes if geo.plane_n[p][2] > 0.5)
+    # what a ray can do: a wall sends it towards the other wall (walls alternate), walls keep
+    # its vertical direction, so after the ground (down -> up) it never meets the ground again
+    expected = set()
+    for k in range(4):
+        for q in itertools.product((wall_lo, wall_hi, ground_), repeat=k):
+            walls = [p for p in q if p != ground_]
+            if all(a != b for a, b in zip(walls, walls[1:])) and q.count(ground_) <= 1 and \
+                    all(a != b for a, b in zip(q, q[1:])):
+                expected.add(q)
+    assert {tuple(int(p) for p in row if p >= 0) for row in seqs} == expected
+    assert len(seqs) == len(expected) == 1 + 3 + 6 + 8
+    # the image in the wall y = -2.5 and then in y = 2.5: y -> -5 - y -> 10 + y
+    k = next(i for i, q in enumerate(seqs) if list(q) == [wall_lo, wall_hi, -1])
+    np.testing.assert_allclose(imgs[k], [0.0, 10.5, 1.5], atol=1e-12)
+
+
+def test_duplicates_keep_the_first_copy_only():
+    tau = np.array([[1e-6, 1e-6 + 5e-13, 1e-6 + 2e-11, 1e-6]])
+    angles = np.zeros((1, 4, 4))
+    inter = np.array([[[8, 0], [8, 0], [8, 0], [1, 8]]], np.uint8)
+    valid = np.ones((1, 4), bool)
+    dup = sp.duplicates(tau, angles, inter, valid)
+    # path 1 repeats path 0 (delay within 1 ps); path 2 is 20 ps away; path 3 another sequence
+    assert dup.tolist() == [[False, True, False, False]]
+
+
+@pytest.mark.raytrace
+def test_exhaustive_candidates_contain_the_sampled_diffraction_paths(tmp_path):
+    """A 5 m street between two 15 m buildings; the UE in it, the BS above the roofs 150 m off.
+
+    Every diffracted path that Sionna's own candidates find with 1e6 rays is among the
+    exhaustive ones with the same coefficient, the exhaustive candidates find at least as many,
+    and the roof-edge path has the delay of the Keller construction.
+    """
+    from veriloc_rt.propagation.sionna_rt import SionnaTracer
+
+    meshes = {"ground": ground(400.0),
+              "b": boxes([[-60, 2.5, 40, 32.5], [-60, -32.5, 40, -2.5]], [15.0, 15.0])}
+    tracer = SionnaTracer(write_test_scene(tmp_path, meshes), FC, seed=1)
+    ue = np.array([[0.0, 0.7, 1.5]])
+    bs = np.array([[20.0, 150.0, 25.0]])
+    sampled = tracer.trace(ue, bs, RayTracingConfig(edge_candidates="sampled"), 10**6)
+    exh = tracer.trace(ue, bs, RayTracingConfig(edge_candidates="exhaustive"), 10**3)
+    diffracted = sampled.valid[0] & np.any(sampled.interactions[0] == 8, axis=-1)
+    assert diffracted.sum() >= 3
+    p_s = np.sum(np.abs(sampled.a[0]) ** 2, axis=(1, 2))
+    p_e = np.sum(np.abs(exh.a[0]) ** 2, axis=(1, 2))
+    for k in np.flatnonzero(diffracted):
+        same = exh.valid[0] & (np.abs(exh.tau[0] - sampled.tau[0, k]) < DELAY_TOL_S) & \
+            np.all(exh.interactions[0] == sampled.interactions[0, k], axis=-1)
+        assert same.sum() == 1, f"sampled path {k} ({sampled.interactions[0, k]}) not found"
+        j = np.flatnonzero(same)[0]
+        assert abs(10 * np.log10(p_e[j] / p_s[k])) < SAME_PATH_POWER_TOL_DB
+    assert np.sum(exh.valid[0] & np.any(exh.interactions[0] == 8, axis=-1)) >= diffracted.sum()
+    # the path over the near roof edge (y = 2.5, z = 15) alone: Keller point on that line
+    a, e = np.array([0.0, 2.5, 15.0]), np.array([1.0, 0.0, 0.0])
+    p = a + sp.keller_point(ue[0], bs[0], a, e) * e
+    tau = (np.linalg.norm(p - ue[0]) + np.linalg.norm(bs[0] - p)) / SPEED_OF_LIGHT
+    d_only = exh.valid[0] & (exh.interactions[0, :, 0] == 8) & (exh.interactions[0, :, 1] == 0)
+    assert np.min(np.abs(exh.tau[0][d_only] - tau)) < DELAY_TOL_S

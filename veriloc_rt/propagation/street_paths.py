@@ -1,0 +1,405 @@
+"""Deterministic edge-diffraction candidates for street-level links: wall images + every wedge.
+
+Sionna RT's shoot-and-bounce generator finds a path only when one of its rays happens to
+follow the path's sequence of primitives and, at the edge, happens to sample diffraction
+(:attr:`SBCandidateGenerator.DIFFRACTION_SAMPLING_PROBABILITY`). In a street canyon the power of
+a link arrives over a roof edge and then between the street's walls, and these paths are found
+only at ray counts far above what a run can afford (docs/convergence.md). Their geometry,
+however, is simple: a source images itself in the planar walls near it, the image sees an
+edge, the edge sees the target (or its images in the planes near the target). This module
+enumerates exactly those candidates and hands them to Sionna RT's own image method (which
+finds the exact vertices, checks every segment for occlusion and rejects what is not a path)
+and field calculator (materials, the diffraction coefficient, antenna patterns), so a path
+found here is the path the ray tracer would find with unlimited rays.
+
+Candidates, per (source, target) pair and for ``max_depth`` interactions in all:
+
+    [R_s ...] D [R_t ...]
+
+* ``R_s``: specular reflections on planes within ``plane_distance`` of the source and facing it
+  (no plane twice in a row), ``R_t`` likewise near the target;
+* ``D``: first-order diffraction on any wedge of the scene whose Keller-cone point (between
+  the source's image and the target's image) lies on the edge segment, lit from the source
+  side and seen from the target side.
+
+Planes are the distinct planes of the scene's triangles (coplanar triangles are one plane: the
+image method accepts a reflection on any primitive of the candidate's plane). Wedges are the
+triangle edges shared by two faces that are not coplanar (bottom faces excluded), as Sionna RT
+defines them (:func:`sionna.rt.utils.wedges.wedge_geometry`).
+
+The generator complements the shoot-and-bounce one; the tracer runs both and merges the paths
+(:func:`merge_paths`).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: Two triangles are coplanar when their unit normals agree to this (dimensionless) and their
+#: plane offsets to PLANE_OFFSET_TOL_M (float32 vertex coordinates of scenes up to a few km)
+NORMAL_TOL = 1e-4
+PLANE_OFFSET_TOL_M = 1e-3
+#: A candidate's diffraction point must lie this far inside its edge segment (relative to the
+#: edge length): Sionna rejects points at the ends, and a path through a wedge's end is the
+#: corner diffraction that first-order UTD does not model
+EDGE_INTERIOR = 1e-4
+
+#: Two traced paths are one when their interaction sequences are equal, their delays within
+#: SAME_DELAY_S (the float32 image method repeats a path to a few femtoseconds; distinct paths
+#: of one sequence in the canyon differ by >= 12 ps, docs/convergence.md) and their angles at
+#: both ends within SAME_ANGLE_RAD
+SAME_DELAY_S = 1e-12
+SAME_ANGLE_RAD = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class SceneGeometry:
+    """Planes and wedges of a scene's meshes, in float64.
+
+    plane_n : [num_planes, 3] unit normals;  plane_d : [num_planes] offsets (n . x = d), m
+    plane_shape : [num_planes] uint32 Sionna shape pointers;  plane_prim : [num_planes] uint32
+    plane_point : [num_planes, 3] m, a vertex of the representative triangle
+    edge_a, edge_b : [num_wedges, 3] m, the edge's end points
+    edge_shape : [num_wedges] uint32;  edge_prim : [num_wedges, 2] uint32 the two faces;
+    edge_local : [num_wedges, 2] uint8 the edge's local index in each face
+    edge_n : [num_wedges, 2, 3] the faces' outward unit normals
+    """
+
+    plane_n: np.ndarray
+    plane_d: np.ndarray
+    plane_shape: np.ndarray
+    plane_prim: np.ndarray
+    plane_point: np.ndarray
+    edge_a: np.ndarray
+    edge_b: np.ndarray
+    edge_shape: np.ndarray
+    edge_prim: np.ndarray
+    edge_local: np.ndarray
+    edge_n: np.ndarray
+
+    @classmethod
+    def from_meshes(cls, meshes: list[tuple[int, np.ndarray, np.ndarray]]) -> "SceneGeometry":
+        """:param meshes: (shape pointer, vertices [nv, 3], faces [nf, 3]) per mesh"""
+        pn, pd, ps, pp, ppt = [], [], [], [], []
+        ea, eb, es, ep, el, en = [], [], [], [], [], []
+        for ptr, v, f in meshes:
+            v = np.asarray(v, np.float64)
+            f = np.asarray(f, np.int64)
+            n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+            norm = np.linalg.norm(n, axis=1)
+            ok = norm > 0
+            n = np.where(ok[:, None], n / np.where(ok, norm, 1.0)[:, None], 0.0)
+            d = np.einsum("ij,ij->i", n, v[f[:, 0]])
+            # distinct planes (first triangle of each as representative)
+            key = np.concatenate([np.round(n / NORMAL_TOL), np.round(d / PLANE_OFFSET_TOL_M)[:, None]],
+                                 axis=1)
+            _, first = np.unique(key[ok], axis=0, return_index=True)
+            idx = np.flatnonzero(ok)[np.sort(first)]
+            pn.append(n[idx])
+            pd.append(d[idx])
+            ps.append(np.full(len(idx), ptr, np.uint32))
+            pp.append(idx.astype(np.uint32))
+            ppt.append(v[f[idx, 0]])
+            # wedges: directed edges (f[i, l], f[i, (l+1) % 3]) matched with their opposite
+            tail = f.ravel()
+            head = np.roll(f, -1, axis=1).ravel()
+            fwd = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(tail, head))}
+            for k, (a, b) in enumerate(zip(tail, head)):
+                j = fwd.get((int(b), int(a)))
+                if j is None or j < k:
+                    continue
+                fi, fj = k // 3, j // 3
+                if not (ok[fi] and ok[fj]):
+                    continue
+                if abs(float(np.dot(n[fi], n[fj]))) > 1.0 - NORMAL_TOL and \
+                        abs(d[fi] - np.sign(np.dot(n[fi], n[fj])) * d[fj]) < PLANE_OFFSET_TOL_M:
+                    continue              # coplanar: not a wedge
+                if n[fi, 2] < -0.5 or n[fj, 2] < -0.5:
+                    continue              # a bottom face: the building stands on the ground
+                ea.append(v[a])
+                eb.append(v[b])
+                es.append(ptr)
+                ep.append((fi, fj))
+                el.append((k % 3, j % 3))
+                en.append((n[fi], n[fj]))
+        cat = np.concatenate
+        return cls(plane_n=cat(pn), plane_d=cat(pd), plane_shape=cat(ps), plane_prim=cat(pp),
+                   plane_point=cat(ppt), edge_a=np.array(ea).reshape(-1, 3),
+                   edge_b=np.array(eb).reshape(-1, 3), edge_shape=np.array(es, np.uint32),
+                   edge_prim=np.array(ep, np.uint32).reshape(-1, 2),
+                   edge_local=np.array(el, np.uint8).reshape(-1, 2),
+                   edge_n=np.array(en).reshape(-1, 2, 3))
+
+    @property
+    def num_planes(self) -> int:
+        return len(self.plane_d)
+
+    @property
+    def num_wedges(self) -> int:
+        return len(self.edge_a)
+
+
+def reflect(p: np.ndarray, n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Mirror images of points ``p`` [..., 3] in the planes n . x = d (n [..., 3], d [...])."""
+    return p - 2.0 * (np.einsum("...i,...i->...", p, n) - d)[..., None] * n
+
+
+def keller_point(s: np.ndarray, t: np.ndarray, a: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Parameter x of the first-order diffraction point a + x e on the line through ``a`` along
+    unit ``e`` for a ray from ``s`` to ``t`` (Keller's law: equal angles with the edge on both
+    sides, Kouyoumjian & Pathak 1974, eq. 1; the unfolded path is straight).
+
+    With ``u = (s - a) . e``, ``v = (t - a) . e`` and the distances to the line ``rs``, ``rt``,
+    the point divides [u, v] in the ratio rs : rt: ``x = u + (v - u) rs / (rs + rt)``.
+
+    :param s, t, a: [..., 3] m;  e: [..., 3] unit
+    :returns: [...] m (NaN where the source and target both lie on the line)
+    """
+    u = np.einsum("...i,...i->...", s - a, e)
+    v = np.einsum("...i,...i->...", t - a, e)
+    rs = np.linalg.norm(s - a - u[..., None] * e, axis=-1)
+    rt = np.linalg.norm(t - a - v[..., None] * e, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return u + (v - u) * rs / (rs + rt)
+
+
+def sequences(geo: "SceneGeometry", end: np.ndarray, planes: np.ndarray,
+              max_len: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every chain of at most ``max_len`` reflections of ``end`` on ``planes``: no plane twice
+    in a row, and each plane with the current image of ``end`` in front of it (a wave can only
+    reach a plane's front face).
+
+    :returns: sequences [num, max(max_len, 1)] int padded with -1 (the empty chain first) and
+        the images of ``end`` [num, 3] m
+    """
+    seqs: list[tuple[int, ...]] = [()]
+    imgs = [np.asarray(end, float)]
+    frontier = [((), imgs[0])]
+    for _ in range(max_len):
+        nxt = []
+        for q, img in frontier:
+            h = geo.plane_n[planes] @ img - geo.plane_d[planes]
+            for p in planes[h > 0]:
+                if q and q[-1] == p:
+                    continue
+                nxt.append((q + (int(p),), reflect(img, geo.plane_n[p], geo.plane_d[p])))
+        frontier = nxt
+        seqs += [q for q, _ in nxt]
+        imgs += [i for _, i in nxt]
+    arr = np.full((len(seqs), max(max_len, 1)), -1, np.int64)
+    for k, q in enumerate(seqs):
+        arr[k, :len(q)] = q
+    return arr, np.array(imgs)
+
+
+@dataclass(frozen=True, eq=False)
+class Candidates:
+    """Candidate paths, padded to ``max_depth`` interactions.
+
+    src, tgt : [num] int;  kind : [num, max_depth] int ('R' = 1, 'D' = 2, 0 none)
+    shape, prim : [num, max_depth] uint32;  vertex : [num, max_depth, 3] m (a point on the
+    plane for a reflection, the Keller point for the diffraction)
+    wedge : [num] int index into the scene's wedges;  face0 : [num] int (0 or 1), the wedge's
+    face the incident ray comes from (Sionna's 0-face)
+    """
+
+    src: np.ndarray
+    tgt: np.ndarray
+    kind: np.ndarray
+    shape: np.ndarray
+    prim: np.ndarray
+    vertex: np.ndarray
+    wedge: np.ndarray
+    face0: np.ndarray
+
+    FIELDS = ("src", "tgt", "kind", "shape", "prim", "vertex", "wedge", "face0")
+
+    def __len__(self) -> int:
+        return len(self.src)
+
+
+REFLECTION, DIFFRACTION = 1, 2
+
+#: Visibility test: ``visible(a, b)`` [n, 3] m -> [n] bool, True where the open segment a-b
+#: meets no surface
+Visibility = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_depth: int,
+                      plane_distance: float, max_target_reflections: int,
+                      visible: Visibility | None = None) -> Candidates:
+    """Enumerate [R_s...] D [R_t...] candidates for every (source, target) pair.
+
+    A candidate is kept when its Keller point lies inside the edge segment, the incident ray
+    comes from the exterior of one face and the diffracted ray leaves into the exterior of one
+    face; with ``visible``, also when the segment joining the diffraction point to the last
+    source-side vertex (the source or the last reflection point) is free, and likewise on the
+    target side. Sionna's image method then checks every segment of what remains.
+
+    :param src: [num_src, 3] m;  tgt: [num_tgt, 3] m
+    :param max_depth: interactions per path (>= 1)
+    :param plane_distance: reflecting planes within this distance of an end (in front of it), m
+    :param max_target_reflections: at most this many reflections between edge and target
+    """
+    ea, eb = geo.edge_a, geo.edge_b
+    elen = np.linalg.norm(eb - ea, axis=1)
+    ehat = (eb - ea) / np.where(elen > 0, elen, 1.0)[:, None]
+    parts: list[dict] = []
+    side_t = [sequences(geo, p, _near_planes(geo, p, plane_distance),
+                        min(max_depth - 1, max_target_reflections)) for p in tgt]
+    for i, s in enumerate(src):
+        seq_s, img_s = sequences(geo, s, _near_planes(geo, s, plane_distance), max_depth - 1)
+        last_s = _last_plane(seq_s)
+        ls = (seq_s >= 0).sum(1)
+        for j, t in enumerate(tgt):
+            seq_t, img_t = side_t[j]
+            last_t = _last_plane(seq_t)
+            lt = (seq_t >= 0).sum(1)
+            qs, qt = np.nonzero(ls[:, None] + lt[None, :] <= max_depth - 1)
+            x, inside = _keller_on_edges(img_s[qs], img_t[qt], ea, ehat, elen, geo.edge_n)
+            q, w = np.nonzero(inside)
+            p = ea[w] + x[q, w][:, None] * ehat[w]
+            k_in, k_out = p - img_s[qs[q]], img_t[qt[q]] - p
+            n0, n1 = geo.edge_n[w, 0], geo.edge_n[w, 1]
+            lit0 = np.einsum("ij,ij->i", k_in, n0) < 0
+            lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
+            out = (np.einsum("ij,ij->i", k_out, n0) > 0) | (np.einsum("ij,ij->i", k_out, n1) > 0)
+            keep = (lit0 | lit1) & out
+            q, w, p, lit0 = q[keep], w[keep], p[keep], lit0[keep]
+            if visible is not None and len(q):
+                # source side first, the target side only on what is left (half the rays)
+                for side in ((s, img_s, qs, last_s), (t, img_t, qt, last_t)):
+                    end, img, qq, last = side
+                    a = _last_vertex(geo, end, img[qq[q]], last[qq[q]], p)
+                    ok = visible(a, p)
+                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
+            parts.append({"src": np.full(len(q), i), "tgt": np.full(len(q), j),
+                          "seq_s": seq_s[qs[q]], "seq_t": seq_t[qt[q]], "wedge": w, "p": p,
+                          "face0": np.where(lit0, 0, 1)})
+    return _assemble(geo, parts, max_depth)
+
+
+def _keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
+                     length: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`keller_point` for every (source image, target image) row and every edge, as
+    matrix products, with the cheap necessary conditions: the point inside the segment, the
+    source image in front of one face and the target image in front of one face.
+
+    :param S, T: [Q, 3] m;  a, e: [W, 3];  length: [W] m;  n: [W, 2, 3]
+    :returns: x [Q, W] m and the mask [Q, W] of pairs that pass
+    """
+    ae = np.einsum("ij,ij->i", a, e)
+    u = S @ e.T - ae                                   # (S - a) . e
+    v = T @ e.T - ae
+    aa = np.einsum("ij,ij->i", a, a)
+    ss = np.einsum("ij,ij->i", S, S)[:, None] - 2.0 * (S @ a.T) + aa
+    tt = np.einsum("ij,ij->i", T, T)[:, None] - 2.0 * (T @ a.T) + aa
+    rs = np.sqrt(np.maximum(ss - u * u, 0.0))
+    rt = np.sqrt(np.maximum(tt - v * v, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = u + (v - u) * rs / (rs + rt)
+    ok = (x > EDGE_INTERIOR * length) & (x < (1 - EDGE_INTERIOR) * length)
+    for side in (S, T):
+        h0 = side @ n[:, 0].T - np.einsum("ij,ij->i", a, n[:, 0])
+        h1 = side @ n[:, 1].T - np.einsum("ij,ij->i", a, n[:, 1])
+        ok &= (h0 > 0) | (h1 > 0)
+    return x, ok
+
+
+def _last_plane(seq: np.ndarray) -> np.ndarray:
+    """Last plane of each padded sequence [n, L] -> [n] int (-1: empty)."""
+    n = (seq >= 0).sum(1)
+    return np.where(n > 0, seq[np.arange(len(seq)), np.maximum(n - 1, 0)], -1)
+
+
+def _last_vertex(geo: SceneGeometry, end: np.ndarray, img: np.ndarray, last: np.ndarray,
+                 p: np.ndarray) -> np.ndarray:
+    """The vertex before the diffraction point ``p`` on one side: the end itself, or the
+    reflection point on the last plane (where the line from the full image to ``p`` crosses
+    it). [n, 3] m"""
+    out = np.repeat(end[None].astype(float), len(p), axis=0)
+    r = last >= 0
+    if r.any():
+        n, d = geo.plane_n[last[r]], geo.plane_d[last[r]]
+        u = p[r] - img[r]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = (d - np.einsum("ij,ij->i", n, img[r])) / np.einsum("ij,ij->i", n, u)
+            out[r] = img[r] + f[:, None] * u       # NaN where the line is parallel to it
+    return out
+
+
+def _assemble(geo: SceneGeometry, parts: list[dict], max_depth: int) -> Candidates:
+    """Candidates from the kept (source, target, sequences, wedge) rows."""
+    def cat(key, empty):
+        return np.concatenate([pt[key] for pt in parts]) if parts else empty
+
+    src, tgt = cat("src", np.zeros(0, int)), cat("tgt", np.zeros(0, int))
+    seq_s = cat("seq_s", np.zeros((0, max(max_depth - 1, 1)), int))
+    seq_t = cat("seq_t", np.zeros((0, 1), int))
+    wedge, p, face0 = cat("wedge", np.zeros(0, int)), cat("p", np.zeros((0, 3))), \
+        cat("face0", np.zeros(0, int))
+    num = len(src)
+    ls = (seq_s >= 0).sum(1)
+    lt = (seq_t >= 0).sum(1)
+    kind = np.zeros((num, max_depth), int)
+    shape = np.zeros((num, max_depth), np.uint32)
+    prim = np.zeros((num, max_depth), np.uint32)
+    vertex = np.zeros((num, max_depth, 3))
+    rows = np.arange(num)
+    for depth in range(max_depth):
+        plane = np.full(num, -1)
+        on_s = depth < ls
+        if on_s.any():
+            plane[on_s] = seq_s[on_s, depth]
+        on_d = depth == ls
+        # target side, listed from the target (seq_t[:, 0] is next to the target): reversed
+        k_t = ls + lt - depth
+        on_t = (depth > ls) & (depth <= ls + lt)
+        plane[on_t] = seq_t[rows[on_t], k_t[on_t]]
+        r = plane >= 0
+        kind[r, depth] = REFLECTION
+        shape[r, depth] = geo.plane_shape[plane[r]]
+        prim[r, depth] = geo.plane_prim[plane[r]]
+        vertex[r, depth] = geo.plane_point[plane[r]]
+        kind[on_d, depth] = DIFFRACTION
+        shape[on_d, depth] = geo.edge_shape[wedge[on_d]]
+        prim[on_d, depth] = geo.edge_prim[wedge[on_d], face0[on_d]]
+        vertex[on_d, depth] = p[on_d]
+    return Candidates(src=src, tgt=tgt, kind=kind, shape=shape, prim=prim, vertex=vertex,
+                      wedge=wedge, face0=face0)
+
+
+def _near_planes(geo: SceneGeometry, p: np.ndarray, dist: float) -> np.ndarray:
+    """Planes within ``dist`` of ``p`` (either side). -> [k] int"""
+    h = geo.plane_n @ p - geo.plane_d
+    return np.flatnonzero(np.abs(h) <= dist)
+
+
+def _image(geo: SceneGeometry, p: np.ndarray, seq: tuple[int, ...]) -> np.ndarray:
+    for pl in seq:
+        p = reflect(p, geo.plane_n[pl], geo.plane_d[pl])
+    return p
+
+
+
+def duplicates(tau: np.ndarray, angles: np.ndarray, inter: np.ndarray,
+               valid: np.ndarray) -> np.ndarray:
+    """Paths that repeat an earlier path of the same link (same interaction sequence, delay
+    within SAME_DELAY_S, the four angles within SAME_ANGLE_RAD).
+
+    :param tau: [links, paths] s;  angles: [links, paths, 4] rad;  inter: [links, paths, depth]
+    :param valid: [links, paths] bool
+    :returns: [links, paths] bool, True on every copy after the first
+    """
+    same = (np.abs(tau[:, :, None] - tau[:, None, :]) <= SAME_DELAY_S)
+    same &= np.all(np.abs(angles[:, :, None] - angles[:, None, :]) <= SAME_ANGLE_RAD, axis=-1)
+    same &= np.all(inter[:, :, None] == inter[:, None, :], axis=-1)
+    same &= valid[:, :, None] & valid[:, None, :]
+    earlier = np.tril(np.ones(tau.shape[1:] * 2, bool), k=-1)   # [i, j]: j before i
+    return np.any(same & earlier, axis=-1)
