@@ -75,6 +75,8 @@ KNOBS = (
          (10_000, 20_000, 50_000, 200_000, 1_000_000)),
     Knob("raytrace", "max_depth", "propagation.raytrace.max_depth", (1, 2, 3, 4, 5)),
     Knob("raytrace", "diffraction", "propagation.raytrace.diffraction", (False, True)),
+    Knob("raytrace", "edge_candidates", "propagation.raytrace.edge_candidates",
+         ("sampled", "exhaustive")),
     Knob("raytrace", "margin_m", "scene.margin_m", (20.0, 60.0, 150.0, 300.0)),
     Knob("waveform", "sample_rate_hz", "nr.sample_rate_hz", (None, 30.72e6, 61.44e6, 122.88e6)),
     Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
@@ -124,18 +126,18 @@ TIME_DECIMATION = 8
 #: what every time-domain setting adds: decimated path application, and the fast path's own OFDM
 #: front end (the shared per-RE noise reaches only the FFT windows)
 TIME_DOMAIN_PATCH = {"channel.time_decimation": TIME_DECIMATION, "channel.time_front_end": "ofdm"}
-#: the ray-tracing reference of the full sweep: the converged setting of the convergence study
-#: (docs/convergence.md, scripts/bench_convergence.py). Received power converges slowly in the
-#: number of rays: a strong path (a roof-edge or corner diffraction, then reflections between
-#: the street's walls) is found only by the few rays whose sampled diffraction point sees the
-#: BS; 1e7 rays per source is the level within 1 dB (median) and 3 dB (p90) of every path the
-#: study's settings found, and depth 4 misses only the paths of five interactions (a few % of a
-#: link's power). ``work_per_call`` lets a UE's three serving links share one PathSolver call
-#: (one call per link otherwise), several times cheaper per link at a few GiB of peak memory.
-#: The reference's tracing dominates the sweep's time (``points`` scales it); ``quick`` keeps
-#: the highest quick levels instead, which are not converged
+#: the ray-tracing reference of the full sweep: the most complete setting of the convergence
+#: study (docs/convergence.md, scripts/bench_convergence.py): the exhaustive edge-diffraction
+#: candidates together with 1e7 rays per source of Sionna's own, at depth 4 (a path of five
+#: interactions carries a few % of a link's power). Rays alone converge slowly: a strong path (a
+#: roof-edge or corner diffraction, then reflections between the street's walls) is found only
+#: by the few rays whose sampled diffraction point sees the BS. ``work_per_call`` lets a UE's
+#: three serving links share one PathSolver call. The reference's tracing dominates the sweep's
+#: time (``points`` scales it); ``quick`` keeps the highest quick levels instead, which are not
+#: converged
 RAYTRACE_REFERENCE = {"propagation.raytrace.rays_per_source": 10_000_000,
                       "propagation.raytrace.max_depth": 4,
+                      "propagation.raytrace.edge_candidates": "exhaustive",
                       "propagation.raytrace.work_per_call": 120_000_000}
 QUICK_LEVELS = {
     "rays_per_source": (10_000, 50_000, 200_000),
@@ -556,7 +558,8 @@ def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
           f"{res.meta['propagation_model']}, seed {res.meta['seed']})\n\n"
           "Deviations are from the reference (highest level of every knob of the group; for "
           "ray tracing outside --quick the converged setting of docs/convergence.md: "
-          + ", ".join(f"{k.rsplit('.', 1)[-1]} {v:g}" for k, v in RAYTRACE_REFERENCE.items())
+          + ", ".join(f"{k.rsplit('.', 1)[-1]} {v if isinstance(v, str) else format(v, 'g')}"
+                      for k, v in RAYTRACE_REFERENCE.items())
           + "). Power deviations are 10 log10(P / P_ref) per link: p50 signed, p90 of the "
           "magnitude. "
           "The noise-floor row is the config's setting against itself with other noise draws.\n\n"

@@ -50,6 +50,13 @@ PLANE_OFFSET_TOL_M = 1e-3
 #: corner diffraction that first-order UTD does not model
 EDGE_INTERIOR = 1e-4
 
+#: Longer reflection chains are tried only on the wedges that a path with at most this many
+#: reflections on each side reaches: in a street the edges seen after several wall reflections
+#: are the street's own, which the direct and singly reflected paths already reach; this cuts
+#: the pairs to test by an order of magnitude (the power it loses is measured in
+#: docs/convergence.md)
+SEED_REFLECTIONS = 1
+
 #: Two traced paths are one when their interaction sequences are equal, their delays within
 #: SAME_DELAY_S (the float32 image method repeats a path to a few femtoseconds; distinct paths
 #: of one sequence in the canyon differ by >= 12 ps, docs/convergence.md) and their angles at
@@ -69,6 +76,7 @@ class SceneGeometry:
     edge_shape : [num_wedges] uint32;  edge_prim : [num_wedges, 2] uint32 the two faces;
     edge_local : [num_wedges, 2] uint8 the edge's local index in each face
     edge_n : [num_wedges, 2, 3] the faces' outward unit normals
+    edge_ends : [num_wedges, 2] int ids of the end points (equal ids: the same point)
     """
 
     plane_n: np.ndarray
@@ -82,6 +90,7 @@ class SceneGeometry:
     edge_prim: np.ndarray
     edge_local: np.ndarray
     edge_n: np.ndarray
+    edge_ends: np.ndarray
 
     @classmethod
     def from_meshes(cls, meshes: list[tuple[int, np.ndarray, np.ndarray]]) -> "SceneGeometry":
@@ -129,12 +138,20 @@ class SceneGeometry:
                 el.append((k % 3, j % 3))
                 en.append((n[fi], n[fj]))
         cat = np.concatenate
+        ea, eb = np.array(ea).reshape(-1, 3), np.array(eb).reshape(-1, 3)
+        _, ids = np.unique(np.round(np.concatenate([ea, eb]) / PLANE_OFFSET_TOL_M), axis=0,
+                           return_inverse=True)
         return cls(plane_n=cat(pn), plane_d=cat(pd), plane_shape=cat(ps), plane_prim=cat(pp),
-                   plane_point=cat(ppt), edge_a=np.array(ea).reshape(-1, 3),
-                   edge_b=np.array(eb).reshape(-1, 3), edge_shape=np.array(es, np.uint32),
+                   plane_point=cat(ppt), edge_a=ea, edge_b=eb,
+                   edge_ends=ids.reshape(2, -1).T, edge_shape=np.array(es, np.uint32),
                    edge_prim=np.array(ep, np.uint32).reshape(-1, 2),
                    edge_local=np.array(el, np.uint8).reshape(-1, 2),
                    edge_n=np.array(en).reshape(-1, 2, 3))
+
+    def with_neighbours(self, wedges: np.ndarray) -> np.ndarray:
+        """The given wedges and every wedge sharing an end point with one of them. -> [k] int"""
+        pts = np.unique(self.edge_ends[np.unique(wedges)])
+        return np.flatnonzero(np.isin(self.edge_ends, pts).any(axis=1))
 
     @property
     def num_planes(self) -> int:
@@ -240,7 +257,9 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     comes from the exterior of one face and the diffracted ray leaves into the exterior of one
     face; with ``visible``, also when the segment joining the diffraction point to the last
     source-side vertex (the source or the last reflection point) is free, and likewise on the
-    target side. Sionna's image method then checks every segment of what remains.
+    target side. Chains longer than SEED_REFLECTIONS on either side are tried only on the
+    wedges the shorter ones reached. Sionna's image method then checks every segment of what
+    remains.
 
     :param src: [num_src, 3] m;  tgt: [num_tgt, 3] m
     :param max_depth: interactions per path (>= 1)
@@ -261,27 +280,38 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
             seq_t, img_t = side_t[j]
             last_t = _last_plane(seq_t)
             lt = (seq_t >= 0).sum(1)
+
+            def pairs(qs, qt, w_sel):
+                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel."""
+                x, inside = _keller_on_edges(img_s[qs], img_t[qt], ea[w_sel], ehat[w_sel],
+                                             elen[w_sel], geo.edge_n[w_sel])
+                q, c = np.nonzero(inside)
+                w = w_sel[c]
+                p = ea[w] + x[q, c][:, None] * ehat[w]
+                k_in, k_out = p - img_s[qs[q]], img_t[qt[q]] - p
+                n0, n1 = geo.edge_n[w, 0], geo.edge_n[w, 1]
+                lit0 = np.einsum("ij,ij->i", k_in, n0) < 0
+                lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
+                out = (np.einsum("ij,ij->i", k_out, n0) > 0) | \
+                    (np.einsum("ij,ij->i", k_out, n1) > 0)
+                keep = (lit0 | lit1) & out
+                q, w, p, lit0 = q[keep], w[keep], p[keep], lit0[keep]
+                if visible is not None and len(q):
+                    # source side first, the target side only on what is left (half the rays)
+                    for end, img, qq, last in ((s, img_s, qs, last_s), (t, img_t, qt, last_t)):
+                        ok = visible(_last_vertex(geo, end, img[qq[q]], last[qq[q]], p), p)
+                        q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
+                return qs[q], qt[q], w, p, lit0
+
             qs, qt = np.nonzero(ls[:, None] + lt[None, :] <= max_depth - 1)
-            x, inside = _keller_on_edges(img_s[qs], img_t[qt], ea, ehat, elen, geo.edge_n)
-            q, w = np.nonzero(inside)
-            p = ea[w] + x[q, w][:, None] * ehat[w]
-            k_in, k_out = p - img_s[qs[q]], img_t[qt[q]] - p
-            n0, n1 = geo.edge_n[w, 0], geo.edge_n[w, 1]
-            lit0 = np.einsum("ij,ij->i", k_in, n0) < 0
-            lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
-            out = (np.einsum("ij,ij->i", k_out, n0) > 0) | (np.einsum("ij,ij->i", k_out, n1) > 0)
-            keep = (lit0 | lit1) & out
-            q, w, p, lit0 = q[keep], w[keep], p[keep], lit0[keep]
-            if visible is not None and len(q):
-                # source side first, the target side only on what is left (half the rays)
-                for side in ((s, img_s, qs, last_s), (t, img_t, qt, last_t)):
-                    end, img, qq, last = side
-                    a = _last_vertex(geo, end, img[qq[q]], last[qq[q]], p)
-                    ok = visible(a, p)
-                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-            parts.append({"src": np.full(len(q), i), "tgt": np.full(len(q), j),
-                          "seq_s": seq_s[qs[q]], "seq_t": seq_t[qt[q]], "wedge": w, "p": p,
-                          "face0": np.where(lit0, 0, 1)})
+            first = (ls[qs] <= SEED_REFLECTIONS) & (lt[qt] <= SEED_REFLECTIONS)
+            found = [pairs(qs[first], qt[first], np.arange(geo.num_wedges))]
+            if (~first).any() and len(found[0][2]):
+                found.append(pairs(qs[~first], qt[~first], geo.with_neighbours(found[0][2])))
+            for fqs, fqt, w, p, lit0 in found:
+                parts.append({"src": np.full(len(w), i), "tgt": np.full(len(w), j),
+                              "seq_s": seq_s[fqs], "seq_t": seq_t[fqt], "wedge": w, "p": p,
+                              "face0": np.where(lit0, 0, 1)})
     return _assemble(geo, parts, max_depth)
 
 
