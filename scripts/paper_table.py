@@ -1,7 +1,7 @@
 """Side-by-side table of a run's metrics.json and the paper's figures (markdown on stdout).
 
-Paper values: ../shared/reference/veriloc-paper.tex, Fig. "techniques" (correct-decision rate)
-and Fig. "encrypted_PRS" (outcomes). Usage:
+Paper values: veriloc_rt/report/paper.py (the paper of README.md, "How to cite": Fig. "techniques",
+correct-decision rate, and Fig. "encrypted_PRS", outcomes). Usage:
 
     python scripts/paper_table.py results/metrics.json [--label ours]
 """

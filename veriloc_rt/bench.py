@@ -117,7 +117,7 @@ POSITION_TOL_M = 1.0
 #: relative cost resolution of the front: costs closer than this count as equal. Rows that do
 #: the same work (waveform rows that only change ``nr.sample_rate_hz``; ray-tracing crop margins,
 #: whose cost does not grow with the crop in the default canyon) were timed up to 7 % apart
-#: within one sweep (figures in the README's bench section), so a setting less
+#: within one sweep (figures in docs/performance.md), so a setting less
 #: than 10 % cheaper is not measurably cheaper on this machine
 COST_RTOL = 0.10
 #: time-domain settings apply the paths at sample_rate / TIME_DECIMATION (clipped by the chain to

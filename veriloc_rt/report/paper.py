@@ -1,4 +1,5 @@
-"""The paper's published figures (``../shared/reference/veriloc-paper.tex``, Sec. VI).
+"""The paper's published figures (Spanos et al., "Threat Detection and Resilience Techniques in
+PRS-Assisted OTDOA 5G Positioning Systems", Sec. VI; README.md, "How to cite").
 
 Correct-decision rates from Fig. "techniques", outcome shares from Fig. "encrypted_PRS", both in
 percent, evaluated by the authors on the stochastic 3GPP UMa channel (1200 points, attack on
