@@ -250,7 +250,8 @@ Visibility = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_depth: int,
                       plane_distance: float, max_target_reflections: int,
-                      visible: Visibility | None = None) -> Candidates:
+                      visible: Visibility | None = None,
+                      edge_reflections: bool = True) -> Candidates:
     """Enumerate [R_s...] D [R_t...] candidates for every (source, target) pair.
 
     A candidate is kept when its Keller point lies inside the edge segment, the incident ray
@@ -265,11 +266,15 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     :param max_depth: interactions per path (>= 1)
     :param plane_distance: reflecting planes within this distance of an end (in front of it), m
     :param max_target_reflections: at most this many reflections between edge and target
+    :param edge_reflections: also try one reflection between edge and target on the planes
+        near the diffraction point, where the target does not see the edge directly (needs
+        ``visible``)
     """
     ea, eb = geo.edge_a, geo.edge_b
     elen = np.linalg.norm(eb - ea, axis=1)
     ehat = (eb - ea) / np.where(elen > 0, elen, 1.0)[:, None]
     parts: list[dict] = []
+    width_t = max(max_depth - 1, 1)
     side_t = [sequences(geo, p, _near_planes(geo, p, plane_distance),
                         min(max_depth - 1, max_target_reflections)) for p in tgt]
     for i, s in enumerate(src):
@@ -282,37 +287,90 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
             lt = (seq_t >= 0).sum(1)
 
             def pairs(qs, qt, w_sel):
-                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel."""
+                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel, and
+                the pairs without target-side reflection that the source side sees but the
+                target does not (for :func:`edge_side`)."""
                 x, inside = _keller_on_edges(img_s[qs], img_t[qt], ea[w_sel], ehat[w_sel],
                                              elen[w_sel], geo.edge_n[w_sel])
                 q, c = np.nonzero(inside)
                 w = w_sel[c]
                 p = ea[w] + x[q, c][:, None] * ehat[w]
-                k_in, k_out = p - img_s[qs[q]], img_t[qt[q]] - p
-                n0, n1 = geo.edge_n[w, 0], geo.edge_n[w, 1]
-                lit0 = np.einsum("ij,ij->i", k_in, n0) < 0
-                lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
-                out = (np.einsum("ij,ij->i", k_out, n0) > 0) | \
-                    (np.einsum("ij,ij->i", k_out, n1) > 0)
-                keep = (lit0 | lit1) & out
+                lit0, keep = _wedge_tests(geo, img_s[qs[q]], img_t[qt[q]], w, p)
                 q, w, p, lit0 = q[keep], w[keep], p[keep], lit0[keep]
+                blocked = (qs[:0], w[:0], p[:0])
                 if visible is not None and len(q):
-                    # source side first, the target side only on what is left (half the rays)
-                    for end, img, qq, last in ((s, img_s, qs, last_s), (t, img_t, qt, last_t)):
-                        ok = visible(_last_vertex(geo, end, img[qq[q]], last[qq[q]], p), p)
-                        q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-                return qs[q], qt[q], w, p, lit0
+                    ok = visible(_last_vertex(geo, s, img_s[qs[q]], last_s[qs[q]], p), p)
+                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
+                    ok = visible(_last_vertex(geo, t, img_t[qt[q]], last_t[qt[q]], p), p)
+                    b = ~ok & (lt[qt[q]] == 0)
+                    blocked = (qs[q[b]], w[b], p[b])
+                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
+                return (qs[q], seq_t[qt[q]], w, p, lit0), blocked
+
+            def edge_side(fqs, w, p):
+                """One reflection between the edge and the target on a plane near the
+                diffraction point (a wall of the street the edge borders), for pairs the
+                target does not see directly."""
+                room = ls[fqs] + 2 <= max_depth
+                fqs, w, p = fqs[room], w[room], p[room]
+                h_p = p @ geo.plane_n.T - geo.plane_d                        # [n, planes]
+                h_t = geo.plane_n @ t - geo.plane_d
+                k, pl = np.nonzero((h_p > 0) & (h_p <= plane_distance) & (h_t > 0)[None])
+                fqs, w = fqs[k], w[k]
+                S2 = img_s[fqs]
+                T2 = reflect(t[None], geo.plane_n[pl], geo.plane_d[pl])
+                x = keller_point(S2, T2, ea[w], ehat[w])
+                inside = (x > EDGE_INTERIOR * elen[w]) & (x < (1 - EDGE_INTERIOR) * elen[w])
+                fqs, w, pl, S2, T2, x = fqs[inside], w[inside], pl[inside], S2[inside], \
+                    T2[inside], x[inside]
+                p2 = ea[w] + x[:, None] * ehat[w]
+                lit0, keep = _wedge_tests(geo, S2, T2, w, p2)
+                fqs, w, pl, S2, T2, p2, lit0 = (v[keep] for v in (fqs, w, pl, S2, T2, p2, lit0))
+                if visible is not None and len(w):
+                    r = _last_vertex(geo, t, T2, pl, p2)                      # on the plane
+                    ok = visible(_last_vertex(geo, s, S2, last_s[fqs], p2), p2) & \
+                        visible(r, p2) & visible(r, np.repeat(t[None], len(r), axis=0))
+                    fqs, w, pl, p2, lit0 = (v[ok] for v in (fqs, w, pl, p2, lit0))
+                st = np.full((len(w), width_t), -1)
+                st[:, 0] = pl
+                return fqs, st, w, p2, lit0
 
             qs, qt = np.nonzero(ls[:, None] + lt[None, :] <= max_depth - 1)
             first = (ls[qs] <= SEED_REFLECTIONS) & (lt[qt] <= SEED_REFLECTIONS)
-            found = [pairs(qs[first], qt[first], np.arange(geo.num_wedges))]
+            found, blocked = pairs(qs[first], qt[first], np.arange(geo.num_wedges))
+            found, blocked = [found], [blocked]
             if (~first).any() and len(found[0][2]):
-                found.append(pairs(qs[~first], qt[~first], geo.with_neighbours(found[0][2])))
-            for fqs, fqt, w, p, lit0 in found:
+                f2, b2 = pairs(qs[~first], qt[~first], geo.with_neighbours(found[0][2]))
+                found.append(f2)
+                blocked.append(b2)
+            if edge_reflections:
+                for b in blocked:
+                    found.append(edge_side(*b))
+            for fqs, st, w, p, lit0 in found:
                 parts.append({"src": np.full(len(w), i), "tgt": np.full(len(w), j),
-                              "seq_s": seq_s[fqs], "seq_t": seq_t[fqt], "wedge": w, "p": p,
-                              "face0": np.where(lit0, 0, 1)})
+                              "seq_s": seq_s[fqs], "seq_t": _pad(st, width_t), "wedge": w,
+                              "p": p, "face0": np.where(lit0, 0, 1)})
     return _assemble(geo, parts, max_depth)
+
+
+def _wedge_tests(geo: SceneGeometry, S: np.ndarray, T: np.ndarray, w: np.ndarray,
+                 p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """At the diffraction points ``p`` [n, 3] of wedges ``w`` [n] between source images ``S``
+    and target images ``T`` [n, 3]: (the incident ray comes from the exterior of face 0 [n],
+    it comes from the exterior of a face and leaves into the exterior of one [n])."""
+    k_in, k_out = p - S, T - p
+    n0, n1 = geo.edge_n[w, 0], geo.edge_n[w, 1]
+    lit0 = np.einsum("ij,ij->i", k_in, n0) < 0
+    lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
+    out = (np.einsum("ij,ij->i", k_out, n0) > 0) | (np.einsum("ij,ij->i", k_out, n1) > 0)
+    return lit0, (lit0 | lit1) & out
+
+
+def _pad(seq: np.ndarray, width: int) -> np.ndarray:
+    """Padded sequences [n, k] -> [n, width] (-1 padding)."""
+    out = np.full((len(seq), width), -1, np.int64)
+    out[:, :min(width, seq.shape[1])] = seq[:, :width]
+    return out
 
 
 def _keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
@@ -371,7 +429,7 @@ def _assemble(geo: SceneGeometry, parts: list[dict], max_depth: int) -> Candidat
 
     src, tgt = cat("src", np.zeros(0, int)), cat("tgt", np.zeros(0, int))
     seq_s = cat("seq_s", np.zeros((0, max(max_depth - 1, 1)), int))
-    seq_t = cat("seq_t", np.zeros((0, 1), int))
+    seq_t = cat("seq_t", np.zeros((0, max(max_depth - 1, 1)), int))
     wedge, p, face0 = cat("wedge", np.zeros(0, int)), cat("p", np.zeros((0, 3))), \
         cat("face0", np.zeros(0, int))
     num = len(src)
