@@ -52,7 +52,7 @@ from .sionna_rt import RawPaths
 log = logging.getLogger(__name__)
 
 #: Bump when the cached array layout or the tracing recipe changes
-CACHE_VERSION = 4
+CACHE_VERSION = 5
 
 #: RayTracingConfig fields that do not change what a PathSolver call returns (the cache holds
 #: polarimetric paths; antenna polarizations are applied after it)

@@ -10,25 +10,31 @@ edge, the edge sees the target (or its images in the planes near the target). Th
 enumerates exactly those candidates and hands them to Sionna RT's own image method (which
 finds the exact vertices, checks every segment for occlusion and rejects what is not a path)
 and field calculator (materials, the diffraction coefficient, antenna patterns), so a path
-found here is the path the ray tracer would find with unlimited rays.
+found here is the path the ray tracer would find with unlimited rays. The candidate generator
+is scene-agnostic (any mesh of planar faces); it pays off where power comes over edges near
+street-level ends, as in the canyon.
 
 Candidates, per (source, target) pair and for ``max_depth`` interactions in all:
 
     [R_s ...] D [R_t ...]
 
-* ``R_s``: specular reflections on planes within ``plane_distance`` of the source and facing it
-  (no plane twice in a row), ``R_t`` likewise near the target;
+* ``R_s``: specular reflections on planes within ``plane_distance`` of the source, each with
+  the current image of the source in front of it (no plane twice in a row), ``R_t`` likewise
+  near the target; and, where the target does not see the edge, one reflection on a plane
+  within ``plane_distance`` of the diffraction point (a corner diffraction into a cross street,
+  then that street's wall);
 * ``D``: first-order diffraction on any wedge of the scene whose Keller-cone point (between
   the source's image and the target's image) lies on the edge segment, lit from the source
-  side and seen from the target side.
+  side and seen from the target side (segments pre-tested for occlusion).
 
 Planes are the distinct planes of the scene's triangles (coplanar triangles are one plane: the
 image method accepts a reflection on any primitive of the candidate's plane). Wedges are the
-triangle edges shared by two faces that are not coplanar (bottom faces excluded), as Sionna RT
-defines them (:func:`sionna.rt.utils.wedges.wedge_geometry`).
+triangle edges shared by two faces that are not coplanar, as Sionna RT defines them
+(:func:`sionna.rt.utils.wedges.wedge_geometry`), except the edges of downward faces: a building's
+foot stands on the ground, where Sionna RT's own sampler also diffracts.
 
 The generator complements the shoot-and-bounce one; the tracer runs both and merges the paths
-(:func:`merge_paths`).
+(:meth:`veriloc_rt.propagation.sionna_rt.RawPaths.merge`, duplicates by :func:`duplicates`).
 """
 
 from __future__ import annotations
@@ -106,8 +112,8 @@ class SceneGeometry:
             n = np.where(ok[:, None], n / np.where(ok, norm, 1.0)[:, None], 0.0)
             d = np.einsum("ij,ij->i", n, v[f[:, 0]])
             # distinct planes (first triangle of each as representative)
-            key = np.concatenate([np.round(n / NORMAL_TOL), np.round(d / PLANE_OFFSET_TOL_M)[:, None]],
-                                 axis=1)
+            key = np.concatenate([np.round(n / NORMAL_TOL),
+                                  np.round(d / PLANE_OFFSET_TOL_M)[:, None]], axis=1)
             _, first = np.unique(key[ok], axis=0, return_index=True)
             idx = np.flatnonzero(ok)[np.sort(first)]
             pn.append(n[idx])

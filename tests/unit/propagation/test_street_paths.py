@@ -1,11 +1,11 @@
 """Exhaustive edge-diffraction candidates (veriloc_rt.propagation.street_paths).
 
 Independent references: Fermat's principle (the diffraction point makes the path length
-stationary, found here by Brent's root of its slope); the reflection chains a ray can follow between two
-facing walls and the ground; the image method for a wall reflection; and
-Sionna RT's own shoot-and-bounce candidates at a high ray count, whose paths the exhaustive
-candidates must contain with the same coefficients (same image method and field calculator,
-another way to find the candidate).
+stationary, found here by Brent's root of its slope); the reflection chains a ray can follow
+between two facing walls and the ground; the image method for a wall reflection; and Sionna
+RT's own shoot-and-bounce candidates at a high ray count, whose paths the exhaustive candidates
+must contain with the same coefficients (same image method and field calculator, another way
+to find the candidate).
 """
 
 import itertools
@@ -39,7 +39,8 @@ def test_keller_point_minimises_the_path_length():
 
         def slope(u):     # d(path length)/du: zero at the stationary (Fermat) point
             p = a + u * e
-            return np.dot(p - s, e) / np.linalg.norm(p - s) - np.dot(t - p, e) / np.linalg.norm(t - p)
+            return (np.dot(p - s, e) / np.linalg.norm(p - s)
+                    - np.dot(t - p, e) / np.linalg.norm(t - p))
         ref = brentq(slope, -1e4, 1e4, xtol=1e-12)
         assert abs(x - ref) < KELLER_TOL_M
 
