@@ -157,4 +157,10 @@ def test_ground_reflection_vanishes_where_its_specular_point_leaves_the_scene(tr
         ground = img & (n_int == 1) & (inter[:, 0] == INTERACTION_SPECULAR)
         assert np.any(los & (n_int == 0)), f"line of sight at x = {x}"
         assert ground.any() == (x < x_edge), f"ground reflection at x = {x}"
-    assert raw.valid[-1].sum() == 1                           # far outside: only the LoS
+    # far outside the ground: the LoS, and nothing reflected; the block behind the BS still
+    # diffracts backwards (one edge, found by the exhaustive edge candidates)
+    v = raw.valid[-1]
+    inter = raw.interactions[-1][v]
+    assert np.count_nonzero(np.all(inter == 0, axis=-1)) == 1
+    assert not np.any(inter == INTERACTION_SPECULAR)
+    assert np.all(np.count_nonzero(inter, axis=-1) <= 1)
