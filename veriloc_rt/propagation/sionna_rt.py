@@ -163,13 +163,13 @@ class SionnaTracer:
         self.scene.tx_array, self.scene.rx_array = polarimetric_arrays(rt)
         self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
-        self._edge_solvers: dict = {}   # (plane distance, target reflections) -> PathSolver
+        self._edge_solvers: dict = {}   # (plane distance, target reflections) -> (solver, gen.)
         self.seed = int(seed) % (2**31 - 1)
         self.max_paths_per_src = 10**6
         self.last_num_edge_candidates = 0
 
     def _edge_solver(self, fid: RayTracingConfig):
-        """A PathSolver whose candidates are the exhaustive edge-diffraction ones."""
+        """(PathSolver, its candidate generator): the exhaustive edge-diffraction candidates."""
         key = (fid.candidate_plane_distance_m, fid.candidate_target_reflections)
         if key not in self._edge_solvers:
             # deferred: the module needs the Mitsuba variant import_sionna() selected
@@ -177,8 +177,9 @@ class SionnaTracer:
             solver = self._rt.PathSolver()
             # Sionna's PathSolver has no public hook for the candidate generator: its
             # attribute is replaced (pinned Sionna RT version, tests/unit/propagation)
-            solver._candidate_generator = StreetCandidateGenerator(self.scene.mi_scene, *key)
-            self._edge_solvers[key] = solver
+            generator = StreetCandidateGenerator(self.scene.mi_scene, *key)
+            solver._candidate_generator = generator
+            self._edge_solvers[key] = (solver, generator)
         return self._edge_solvers[key]
 
     def trace(self, tx_pos: np.ndarray, rx_pos: np.ndarray, fid: RayTracingConfig,
@@ -212,12 +213,12 @@ class SionnaTracer:
                             seed=self.seed)
         raw = _extract(paths, len(tx_pos), len(rx_pos), pairs)
         if fid.edge_candidates == "exhaustive" and fid.diffraction and fid.max_depth >= 1:
-            solver = self._edge_solver(fid)
+            solver, generator = self._edge_solver(fid)
             paths = solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=10**9,
                            samples_per_src=rays_per_source, synthetic_array=True, los=False,
                            specular_reflection=True, diffuse_reflection=False,
                            refraction=False, diffraction=True, seed=self.seed)
-            self.last_num_edge_candidates = solver._candidate_generator.last_num_candidates
+            self.last_num_edge_candidates = generator.last_num_candidates
             raw = raw.merge(_extract(paths, len(tx_pos), len(rx_pos), pairs))
         return raw
 

@@ -281,10 +281,10 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     ehat = (eb - ea) / np.where(elen > 0, elen, 1.0)[:, None]
     parts: list[dict] = []
     width_t = max(max_depth - 1, 1)
-    side_t = [sequences(geo, p, _near_planes(geo, p, plane_distance),
+    side_t = [sequences(geo, p, near_planes(geo, p, plane_distance),
                         min(max_depth - 1, max_target_reflections)) for p in tgt]
     for i, s in enumerate(src):
-        seq_s, img_s = sequences(geo, s, _near_planes(geo, s, plane_distance), max_depth - 1)
+        seq_s, img_s = sequences(geo, s, near_planes(geo, s, plane_distance), max_depth - 1)
         last_s = _last_plane(seq_s)
         ls = (seq_s >= 0).sum(1)
         for j, t in enumerate(tgt):
@@ -296,7 +296,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                 """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel, and
                 the pairs without target-side reflection that the source side sees but the
                 target does not (for :func:`edge_side`)."""
-                x, inside = _keller_on_edges(img_s[qs], img_t[qt], ea[w_sel], ehat[w_sel],
+                x, inside = keller_on_edges(img_s[qs], img_t[qt], ea[w_sel], ehat[w_sel],
                                              elen[w_sel], geo.edge_n[w_sel])
                 q, c = np.nonzero(inside)
                 w = w_sel[c]
@@ -379,7 +379,7 @@ def _pad(seq: np.ndarray, width: int) -> np.ndarray:
     return out
 
 
-def _keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
+def keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
                      length: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`keller_point` for every (source image, target image) row and every edge, as
     matrix products, with the cheap necessary conditions: the point inside the segment, the
@@ -469,7 +469,7 @@ def _assemble(geo: SceneGeometry, parts: list[dict], max_depth: int) -> Candidat
                       wedge=wedge, face0=face0)
 
 
-def _near_planes(geo: SceneGeometry, p: np.ndarray, dist: float) -> np.ndarray:
+def near_planes(geo: SceneGeometry, p: np.ndarray, dist: float) -> np.ndarray:
     """Planes within ``dist`` of ``p`` (either side). -> [k] int"""
     h = geo.plane_n @ p - geo.plane_d
     return np.flatnonzero(np.abs(h) <= dist)

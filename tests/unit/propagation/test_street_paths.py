@@ -52,7 +52,7 @@ def test_matrix_keller_equals_the_pointwise_one():
     e = rng.normal(size=(11, 3))
     e /= np.linalg.norm(e, axis=1, keepdims=True)
     n = rng.normal(size=(11, 2, 3))
-    x, _ = sp._keller_on_edges(S, T, a, e, np.full(11, 1e3), n)
+    x, _ = sp.keller_on_edges(S, T, a, e, np.full(11, 1e3), n)
     ref = sp.keller_point(S[:, None], T[:, None], a[None], e[None])
     np.testing.assert_allclose(x, ref, atol=KELLER_TOL_M)
 
@@ -72,7 +72,7 @@ def test_reflection_chains_alternate_between_reachable_planes():
     geo = _street_geometry()
     assert geo.num_planes == 3
     src = np.array([0.0, 0.5, 1.5])
-    planes = sp._near_planes(geo, src, 20.0)
+    planes = sp.near_planes(geo, src, 20.0)
     seqs, imgs = sp.sequences(geo, src, planes, 3)
     wall_lo = next(p for p in planes if geo.plane_n[p][1] > 0.5)
     wall_hi = next(p for p in planes if geo.plane_n[p][1] < -0.5)
