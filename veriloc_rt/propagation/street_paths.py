@@ -45,6 +45,8 @@ from typing import Callable
 
 import numpy as np
 
+from .link_metrics import SAME_PATH_TOL_S
+
 log = logging.getLogger(__name__)
 
 #: Two triangles are coplanar when their unit normals agree to this (dimensionless) and their
@@ -64,10 +66,8 @@ EDGE_INTERIOR = 1e-4
 SEED_REFLECTIONS = 1
 
 #: Two traced paths are one when their interaction sequences are equal, their delays within
-#: SAME_DELAY_S (the float32 image method repeats a path to a few femtoseconds; distinct paths
-#: of one sequence in the canyon differ by >= 12 ps, docs/convergence.md) and their angles at
-#: both ends within SAME_ANGLE_RAD
-SAME_DELAY_S = 1e-12
+#: link_metrics.SAME_PATH_TOL_S (the project's path identity) and their angles at both ends
+#: within SAME_ANGLE_RAD
 SAME_ANGLE_RAD = 1e-3
 
 
@@ -281,16 +281,17 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     ehat = (eb - ea) / np.where(elen > 0, elen, 1.0)[:, None]
     parts: list[dict] = []
     width_t = max(max_depth - 1, 1)
-    side_t = [sequences(geo, p, near_planes(geo, p, plane_distance),
-                        min(max_depth - 1, max_target_reflections)) for p in tgt]
+    side_t = []
+    for p in tgt:
+        seq, img = sequences(geo, p, near_planes(geo, p, plane_distance),
+                             min(max_depth - 1, max_target_reflections))
+        side_t.append((seq, img, _last_plane(seq), (seq >= 0).sum(1)))
     for i, s in enumerate(src):
         seq_s, img_s = sequences(geo, s, near_planes(geo, s, plane_distance), max_depth - 1)
         last_s = _last_plane(seq_s)
         ls = (seq_s >= 0).sum(1)
         for j, t in enumerate(tgt):
-            seq_t, img_t = side_t[j]
-            last_t = _last_plane(seq_t)
-            lt = (seq_t >= 0).sum(1)
+            seq_t, img_t, last_t, lt = side_t[j]
 
             def pairs(qs, qt, w_sel):
                 """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel, and
@@ -326,7 +327,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                 S2 = img_s[fqs]
                 T2 = reflect(t[None], geo.plane_n[pl], geo.plane_d[pl])
                 x = keller_point(S2, T2, ea[w], ehat[w])
-                inside = (x > EDGE_INTERIOR * elen[w]) & (x < (1 - EDGE_INTERIOR) * elen[w])
+                inside = _inside(x, elen[w])
                 fqs, w, pl, S2, T2, x = fqs[inside], w[inside], pl[inside], S2[inside], \
                     T2[inside], x[inside]
                 p2 = ea[w] + x[:, None] * ehat[w]
@@ -372,6 +373,11 @@ def _wedge_tests(geo: SceneGeometry, S: np.ndarray, T: np.ndarray, w: np.ndarray
     return lit0, (lit0 | lit1) & out
 
 
+def _inside(x: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Whether edge parameters ``x`` lie inside their segments (EDGE_INTERIOR from the ends)."""
+    return (x > EDGE_INTERIOR * length) & (x < (1 - EDGE_INTERIOR) * length)
+
+
 def _pad(seq: np.ndarray, width: int) -> np.ndarray:
     """Padded sequences [n, k] -> [n, width] (-1 padding)."""
     out = np.full((len(seq), width), -1, np.int64)
@@ -398,7 +404,7 @@ def keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
     rt = np.sqrt(np.maximum(tt - v * v, 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         x = u + (v - u) * rs / (rs + rt)
-    ok = (x > EDGE_INTERIOR * length) & (x < (1 - EDGE_INTERIOR) * length)
+    ok = _inside(x, length)
     for side in (S, T):
         h0 = side @ n[:, 0].T - np.einsum("ij,ij->i", a, n[:, 0])
         h1 = side @ n[:, 1].T - np.einsum("ij,ij->i", a, n[:, 1])
@@ -475,23 +481,16 @@ def near_planes(geo: SceneGeometry, p: np.ndarray, dist: float) -> np.ndarray:
     return np.flatnonzero(np.abs(h) <= dist)
 
 
-def _image(geo: SceneGeometry, p: np.ndarray, seq: tuple[int, ...]) -> np.ndarray:
-    for pl in seq:
-        p = reflect(p, geo.plane_n[pl], geo.plane_d[pl])
-    return p
-
-
-
 def duplicates(tau: np.ndarray, angles: np.ndarray, inter: np.ndarray,
                valid: np.ndarray) -> np.ndarray:
     """Paths that repeat an earlier path of the same link (same interaction sequence, delay
-    within SAME_DELAY_S, the four angles within SAME_ANGLE_RAD).
+    within SAME_PATH_TOL_S, the four angles within SAME_ANGLE_RAD).
 
     :param tau: [links, paths] s;  angles: [links, paths, 4] rad;  inter: [links, paths, depth]
     :param valid: [links, paths] bool
     :returns: [links, paths] bool, True on every copy after the first
     """
-    same = (np.abs(tau[:, :, None] - tau[:, None, :]) <= SAME_DELAY_S)
+    same = (np.abs(tau[:, :, None] - tau[:, None, :]) <= SAME_PATH_TOL_S)
     same &= np.all(np.abs(angles[:, :, None] - angles[:, None, :]) <= SAME_ANGLE_RAD, axis=-1)
     same &= np.all(inter[:, :, None] == inter[:, None, :], axis=-1)
     same &= valid[:, :, None] & valid[:, None, :]
