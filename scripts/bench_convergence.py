@@ -89,19 +89,20 @@ FIRST_PATH_TOL_M = 1.0
 
 
 def parse_setting(spec: str) -> dict:
-    """direction:depth:rays[:nd][:s<seed>][:ex|:sa] -> setting dict (seed None: the config's;
-    ':ex' / ':sa' set propagation.raytrace.edge_candidates to 'exhaustive' / 'sampled', none:
-    the config's)."""
+    """direction:depth:rays[:nd][:s<seed>][:ex|:bo|:sa] -> setting dict (seed None: the
+    config's; ':ex' / ':bo' / ':sa' set propagation.raytrace.edge_candidates to 'exhaustive' /
+    'both' / 'sampled', none: the config's)."""
     parts = spec.split(":")
     extra = parts[3:]
     ok = len(parts) >= 3 and parts[0] in ("reciprocal", "forward") and \
-        all(e in ("nd", "det", "ex", "sa") or (e[:1] == "s" and e[1:].isdigit()) for e in extra)
+        all(e in ("nd", "det", "ex", "bo", "sa") or (e[:1] == "s" and e[1:].isdigit()) for e in extra)
     if not ok:
         raise SystemExit(f"error: setting {spec!r}: expected "
-                         "direction:depth:rays[:nd][:s<seed>][:ex|:sa], "
+                         "direction:depth:rays[:nd][:s<seed>][:ex|:bo|:sa], "
                          "direction 'reciprocal' or 'forward'")
     seed = next((int(e[1:]) for e in extra if e[:1] == "s" and e[1:].isdigit()), None)
-    edge = "exhaustive" if "ex" in extra else "sampled" if "sa" in extra else None
+    edge = {"ex": "exhaustive", "bo": "both", "sa": "sampled"}
+    edge = next((edge[e] for e in extra if e in edge), None)
     return {"direction": parts[0], "max_depth": int(parts[1]),
             "rays_per_source": int(float(parts[2])), "deterministic": "nd" not in extra,
             "seed": seed, "edge_candidates": edge}

@@ -72,11 +72,11 @@ class Knob:
 #: the sweep (full); ``quick`` keeps the levels marked in QUICK_LEVELS
 KNOBS = (
     Knob("raytrace", "rays_per_source", "propagation.raytrace.rays_per_source",
-         (10_000, 20_000, 50_000, 200_000, 1_000_000)),
+         (1_000, 10_000, 50_000, 200_000, 1_000_000)),
     Knob("raytrace", "max_depth", "propagation.raytrace.max_depth", (1, 2, 3, 4, 5)),
     Knob("raytrace", "diffraction", "propagation.raytrace.diffraction", (False, True)),
     Knob("raytrace", "edge_candidates", "propagation.raytrace.edge_candidates",
-         ("sampled", "exhaustive")),
+         ("sampled", "exhaustive", "both")),
     Knob("raytrace", "margin_m", "scene.margin_m", (20.0, 60.0, 150.0, 300.0)),
     Knob("waveform", "sample_rate_hz", "nr.sample_rate_hz", (None, 30.72e6, 61.44e6, 122.88e6)),
     Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
@@ -128,7 +128,8 @@ TIME_DECIMATION = 8
 TIME_DOMAIN_PATCH = {"channel.time_decimation": TIME_DECIMATION, "channel.time_front_end": "ofdm"}
 #: the ray-tracing reference of the full sweep: the most complete setting of the convergence
 #: study (docs/convergence.md, scripts/bench_convergence.py): the exhaustive edge-diffraction
-#: candidates together with 1e7 rays per source of Sionna's own, at depth 4 (a path of five
+#: candidates together with 1e7 rays per source of Sionna's own, its sampled diffraction
+#: included ('both'), at depth 4 (a path of five
 #: interactions carries a few % of a link's power). Rays alone converge slowly: a strong path (a
 #: roof-edge or corner diffraction, then reflections between the street's walls) is found only
 #: by the few rays whose sampled diffraction point sees the BS. ``work_per_call`` lets a UE's
@@ -137,10 +138,10 @@ TIME_DOMAIN_PATCH = {"channel.time_decimation": TIME_DECIMATION, "channel.time_f
 #: converged
 RAYTRACE_REFERENCE = {"propagation.raytrace.rays_per_source": 10_000_000,
                       "propagation.raytrace.max_depth": 4,
-                      "propagation.raytrace.edge_candidates": "exhaustive",
+                      "propagation.raytrace.edge_candidates": "both",
                       "propagation.raytrace.work_per_call": 120_000_000}
 QUICK_LEVELS = {
-    "rays_per_source": (10_000, 50_000, 200_000),
+    "rays_per_source": (1_000, 10_000, 200_000),
     "max_depth": (3, 4),
     "margin_m": (30.0, 60.0, 120.0),
     "sample_rate_hz": (None, 61.44e6, 122.88e6),

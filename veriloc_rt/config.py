@@ -187,9 +187,10 @@ class RayTracingConfig:
                            "(UE, adversary) and use reciprocity, so the nearby roof edges that "
                            "carry canyon links are densely sampled; 'forward': launch from the "
                            "transmitter (BS)", choices=("reciprocal", "forward"))
-    rays_per_source: int = param(10_000, "rays launched per source (samples_per_src) for "
+    rays_per_source: int = param(1_000, "rays launched per source (samples_per_src) for "
                                  "Sionna RT's sampled candidates (with 'exhaustive' edge "
-                                 "candidates 1e4 and 5e4 give the same power and outcomes, "
+                                 "candidates they carry the line of sight and the reflections: "
+                                 "1e3 and 1e4 give the same power and outcomes, "
                                  "docs/convergence.md)",
                                  lo=100, hi=100_000_000)
     max_candidates_per_source: int = param(2000, "path-candidate buffer per source and target "
@@ -204,13 +205,14 @@ class RayTracingConfig:
                                          "half-plane solution; 'sionna': Sionna RT's own "
                                          "coefficient, kept for comparison (docs/diffraction.md)",
                                          choices=("utd", "sionna"))
-    edge_candidates: str = param("exhaustive", "'exhaustive': besides Sionna RT's sampled "
-                                 "candidates, every first-order diffraction path that reflects "
-                                 "on planes near its two ends ([R...] D [R...], every wedge of "
-                                 "the scene) is enumerated and solved by Sionna's image method "
-                                 "(veriloc_rt.propagation.street_paths; docs/convergence.md); "
-                                 "'sampled': Sionna RT's candidates alone",
-                                 choices=("exhaustive", "sampled"))
+    edge_candidates: str = param("exhaustive", "'exhaustive': every first-order diffraction "
+                                 "path that reflects on planes near its two ends ([R...] D "
+                                 "[R...], every wedge of the scene) is enumerated and solved by "
+                                 "Sionna's image method (veriloc_rt.propagation.street_paths; "
+                                 "docs/convergence.md), Sionna RT's sampled rays give the line "
+                                 "of sight and the reflections; 'both': Sionna's sampled "
+                                 "diffraction as well; 'sampled': Sionna RT's candidates alone",
+                                 choices=("exhaustive", "both", "sampled"))
     candidate_plane_distance_m: float = param(20.0, "'exhaustive' candidates reflect on planes "
                                               "within this distance of a link's end",
                                               lo=0.0, hi=1000.0)

@@ -35,11 +35,11 @@ def test_sweep_settings_raytrace_quick():
         for k in KNOBS:
             if k.group == g:   # the reference is the highest level of every knob
                 assert ref.patch[k.path] == QUICK_LEVELS.get(k.name, k.levels)[-1]
-    # the config's own value is not swept again (10 000 rays, depth 4, diffraction on,
+    # the config's own value is not swept again (1000 rays, depth 4, diffraction on,
     # exhaustive edge candidates)
     rays = [x.value for x in s if x.knob == "rays_per_source"]
-    assert 10_000 not in rays and rays == [50_000, 200_000]
-    assert [x.value for x in s if x.knob == "edge_candidates"] == ["sampled"]
+    assert 1_000 not in rays and rays == [10_000, 200_000]
+    assert [x.value for x in s if x.knob == "edge_candidates"] == ["sampled", "both"]
     assert [x.value for x in s if x.knob == "diffraction"] == [False]
     assert [x.value for x in s if x.knob == "max_depth"] == [3]
     assert sum(x.role == "noise floor" for x in s) == 1

@@ -9,14 +9,13 @@ Links traced (and nothing else):
 The uplink (UE -> BS) is the reciprocal of the downlink and is never traced. Identical links
 (same ends to the millimetre, e.g. the adversary standing where the UE stood) are traced once.
 
-Each PathSolver call has **one source** and all the targets traced from it. Sionna samples
-diffraction events at random from one seeded sequence over all of a call's rays, so a source
-traced next to others gets other draws: measured on the paper canyon, 116 of 120 links traced
-40 sources to a call differed (by 1-2 paths, up to 5x in power on weak links) from the same
-links traced source by source. With one source per call a link's paths depend only on its
-source, its target and the fidelity, not on what else the run traces (adding a target to a call
-leaves the others' paths unchanged: 90 of 90 links, measured), and a call costs about the same
-per link (0.033 against 0.034 s/link batched, 40 points of the paper canyon).
+A PathSolver call traces several sources to the union of their targets when every interaction
+of its sampled rays is deterministic (line of sight and specular reflections, the default with
+the exhaustive edge candidates): a link's paths then depend only on its two ends and the
+fidelity, not on what else the call traces. When Sionna draws interactions at random (its
+sampled diffraction, diffuse reflection or refraction), it draws them from one seeded sequence
+over all of a call's rays, so each call then has one source and its targets
+(docs/convergence.md has the measurements).
 
 In ``direction='reciprocal'`` (the default) rays are launched from the street-level end of each
 link (UE or adversary) and the result is reversed by reciprocity (reciprocal materials: same
@@ -52,13 +51,32 @@ from .sionna_rt import RawPaths
 log = logging.getLogger(__name__)
 
 #: Bump when the cached array layout or the tracing recipe changes
-CACHE_VERSION = 5
+CACHE_VERSION = 7
 
 #: RayTracingConfig fields that do not change what a PathSolver call returns (the cache holds
 #: polarimetric paths; antenna polarizations are applied after it)
 _NOT_IN_KEY = ("cache_dir", "work_per_call", "polarization")
 
+#: Sources per PathSolver call when the sampled rays draw nothing at random (a bound on the
+#: padding of one call's arrays; work_per_call bounds the rest)
+MAX_SOURCES_PER_CALL = 150
+
+#: Traced (source, target) pairs per call: Sionna sizes its candidate buffer by
+#: max_candidates_per_source x pairs
+MAX_PAIRS_PER_CALL = 1024
+
+#: Share of a call's traced pairs that must be wanted when the unwanted ones are dropped before
+#: refinement (their cost is the visibility tests of the shared rays)
+MIN_EFFICIENCY_FILTERED = 1 / 8
+
 Progress = Callable[[int, int], None]
+
+
+def deterministic_rays(fid: RayTracingConfig) -> bool:
+    """Whether Sionna's sampled rays draw no interaction at random: then a link's paths do not
+    depend on the other sources of its call."""
+    sampled_diffraction = fid.diffraction and fid.edge_candidates != "exhaustive"
+    return not (sampled_diffraction or fid.diffuse_reflection or fid.refraction)
 
 
 @dataclass(frozen=True, eq=False)
@@ -91,17 +109,19 @@ def _unique_rows(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plan_calls(src_id: np.ndarray, dst_id: np.ndarray, per_pair_work: int,
-               work_per_call: int, max_sources: int = 150,
-               min_efficiency: float = 0.25) -> list[np.ndarray]:
+               work_per_call: int, max_sources: int = MAX_SOURCES_PER_CALL,
+               min_efficiency: float = 0.25,
+               max_pairs: int = MAX_PAIRS_PER_CALL) -> list[np.ndarray]:
     """Split links (in the given order) into PathSolver calls.
 
     A call traces every one of its sources to every one of its targets, so its work is
     ``per_pair_work * num_sources * num_targets``. Links are added while that stays within
-    ``work_per_call``, the call has at most ``max_sources`` sources and at least
+    ``work_per_call``, the call has at most ``max_sources`` sources and ``max_pairs`` traced
+    pairs (Sionna sizes its candidate buffer by them) and at least
     ``min_efficiency`` of the traced pairs are wanted: consecutive UE points with the same serving
     BSs (or one BS and many UEs) share a call, while point-to-point links go in small calls of at
     most 1/min_efficiency links. :class:`LinkTracer` uses ``max_sources=1`` (one source and its
-    targets per call: the module docstring says why).
+    targets per call) where the rays draw interactions at random (the module docstring says why).
 
     :returns: list of index arrays into the links
     """
@@ -109,7 +129,7 @@ def plan_calls(src_id: np.ndarray, dst_id: np.ndarray, per_pair_work: int,
     for i, (s, d) in enumerate(zip(src_id.tolist(), dst_id.tolist())):
         ns, nd = len(srcs | {s}), len(dsts | {d})
         if cur and (per_pair_work * ns * nd > work_per_call or ns > max_sources
-                    or (len(cur) + 1) < min_efficiency * ns * nd):
+                    or ns * nd > max_pairs or (len(cur) + 1) < min_efficiency * ns * nd):
             calls.append(np.array(cur))
             cur, srcs, dsts = [], set(), set()
         cur.append(i)
@@ -174,10 +194,15 @@ class LinkTracer:
         u_src, u_dst = src_id[pair_first], dst_id[pair_first]
         order = np.lexsort((u_dst, u_src))
         per_pair = max(self.fid.max_depth, 1) * rays
-        # one source per call: the draws of Sionna's sampled diffraction then do not depend on
-        # which other sources the run traces (module docstring)
-        calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call,
-                           max_sources=1)
+        # one source per call where Sionna draws interactions at random (module docstring);
+        # otherwise unwanted pairs cost little (their candidates are dropped before they are
+        # refined), so point-to-point links share calls too
+        if deterministic_rays(self.fid):
+            calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call,
+                               min_efficiency=MIN_EFFICIENCY_FILTERED)
+        else:
+            calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call,
+                               max_sources=1)
         results: list[RawPaths | None] = [None] * len(pair_first)
         done = 0
         total = len(pair_first)

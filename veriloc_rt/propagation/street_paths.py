@@ -65,6 +65,10 @@ EDGE_INTERIOR = 1e-4
 #: docs/convergence.md)
 SEED_REFLECTIONS = 1
 
+#: Longer chains also try the wedges of the planes they reflect on within this many
+#: ``plane_distance`` of their end (the street's own roof edges further along the street)
+WEDGE_REACH = 2.0
+
 #: Two traced paths are one when their interaction sequences are equal, their delays within
 #: link_metrics.SAME_PATH_TOL_S (the project's path identity) and their angles at both ends
 #: within SAME_ANGLE_RAD
@@ -83,6 +87,7 @@ class SceneGeometry:
     edge_local : [num_wedges, 2] uint8 the edge's local index in each face
     edge_n : [num_wedges, 2, 3] the faces' outward unit normals
     edge_ends : [num_wedges, 2] int ids of the end points (equal ids: the same point)
+    edge_plane : [num_wedges, 2] int the planes of the two faces
     """
 
     plane_n: np.ndarray
@@ -97,12 +102,14 @@ class SceneGeometry:
     edge_local: np.ndarray
     edge_n: np.ndarray
     edge_ends: np.ndarray
+    edge_plane: np.ndarray
 
     @classmethod
     def from_meshes(cls, meshes: list[tuple[int, np.ndarray, np.ndarray]]) -> "SceneGeometry":
         """:param meshes: (shape pointer, vertices [nv, 3], faces [nf, 3]) per mesh"""
         pn, pd, ps, pp, ppt = [], [], [], [], []
-        ea, eb, es, ep, el, en = [], [], [], [], [], []
+        ea, eb, es, ep, el, en, eq = [], [], [], [], [], [], []
+        num_planes = 0
         for ptr, v, f in meshes:
             v = np.asarray(v, np.float64)
             f = np.asarray(f, np.int64)
@@ -114,8 +121,11 @@ class SceneGeometry:
             # distinct planes (first triangle of each as representative)
             key = np.concatenate([np.round(n / NORMAL_TOL),
                                   np.round(d / PLANE_OFFSET_TOL_M)[:, None]], axis=1)
-            _, first = np.unique(key[ok], axis=0, return_index=True)
+            _, first, group = np.unique(key[ok], axis=0, return_index=True, return_inverse=True)
             idx = np.flatnonzero(ok)[np.sort(first)]
+            tri_plane = np.full(len(f), -1)
+            tri_plane[ok] = num_planes + np.argsort(np.argsort(first))[group.ravel()]
+            num_planes += len(idx)
             pn.append(n[idx])
             pd.append(d[idx])
             ps.append(np.full(len(idx), ptr, np.uint32))
@@ -143,6 +153,7 @@ class SceneGeometry:
                 ep.append((fi, fj))
                 el.append((k % 3, j % 3))
                 en.append((n[fi], n[fj]))
+                eq.append((tri_plane[fi], tri_plane[fj]))
         cat = np.concatenate
         ea, eb = np.array(ea).reshape(-1, 3), np.array(eb).reshape(-1, 3)
         _, ids = np.unique(np.round(np.concatenate([ea, eb]) / PLANE_OFFSET_TOL_M), axis=0,
@@ -152,12 +163,24 @@ class SceneGeometry:
                    edge_ends=ids.reshape(2, -1).T, edge_shape=np.array(es, np.uint32),
                    edge_prim=np.array(ep, np.uint32).reshape(-1, 2),
                    edge_local=np.array(el, np.uint8).reshape(-1, 2),
-                   edge_n=np.array(en).reshape(-1, 2, 3))
+                   edge_n=np.array(en).reshape(-1, 2, 3),
+                   edge_plane=np.array(eq, np.int64).reshape(-1, 2))
 
     def with_neighbours(self, wedges: np.ndarray) -> np.ndarray:
         """The given wedges and every wedge sharing an end point with one of them. -> [k] int"""
         pts = np.unique(self.edge_ends[np.unique(wedges)])
         return np.flatnonzero(np.isin(self.edge_ends, pts).any(axis=1))
+
+    def near_wedges(self, p: np.ndarray, seq: np.ndarray, dist: float) -> np.ndarray:
+        """Wedges within ``dist`` of the point ``p`` [3] m with a face on a plane of the
+        sequences ``seq`` [n, k] int (-1 padding). -> [m] int"""
+        planes = np.unique(seq[seq >= 0])
+        w = np.flatnonzero(np.isin(self.edge_plane, planes).any(axis=1))
+        a, b = self.edge_a[w], self.edge_b[w]
+        e = b - a
+        x = np.clip(np.einsum("ij,ij->i", p - a, e) / np.maximum(
+            np.einsum("ij,ij->i", e, e), 1e-12), 0.0, 1.0)
+        return w[np.linalg.norm(a + x[:, None] * e - p, axis=1) <= dist]
 
     @property
     def num_planes(self) -> int:
@@ -257,7 +280,8 @@ Visibility = Callable[[np.ndarray, np.ndarray], np.ndarray]
 def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_depth: int,
                       plane_distance: float, max_target_reflections: int,
                       visible: Visibility | None = None,
-                      edge_reflections: bool = True) -> Candidates:
+                      edge_reflections: bool = True,
+                      links: np.ndarray | None = None) -> Candidates:
     """Enumerate [R_s...] D [R_t...] candidates for every (source, target) pair.
 
     A candidate is kept when its Keller point lies inside the edge segment, the incident ray
@@ -265,7 +289,8 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     face; with ``visible``, also when the segment joining the diffraction point to the last
     source-side vertex (the source or the last reflection point) is free, and likewise on the
     target side. Chains longer than SEED_REFLECTIONS on either side are tried only on the
-    wedges the shorter ones reached. Sionna's image method then checks every segment of what
+    wedges the shorter ones reached, their neighbours, and the wedges of the planes the longer
+    chains reflect on within WEDGE_REACH * ``plane_distance`` of their end. Sionna's image method then checks every segment of what
     remains.
 
     :param src: [num_src, 3] m;  tgt: [num_tgt, 3] m
@@ -275,22 +300,34 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     :param edge_reflections: also try one reflection between edge and target on the planes
         near the diffraction point, where the target does not see the edge directly (needs
         ``visible``)
+    :param links: [n, 2] int (source, target) indices to enumerate; default every pair
     """
+    wanted = np.ones((len(src), len(tgt)), bool)
+    if links is not None:
+        wanted[:] = False
+        wanted[links[:, 0], links[:, 1]] = True
     ea, eb = geo.edge_a, geo.edge_b
     elen = np.linalg.norm(eb - ea, axis=1)
     ehat = (eb - ea) / np.where(elen > 0, elen, 1.0)[:, None]
     parts: list[dict] = []
     width_t = max(max_depth - 1, 1)
     side_t = []
-    for p in tgt:
+    for j, p in enumerate(tgt):
+        if not wanted[:, j].any():
+            side_t.append(None)
+            continue
         seq, img = sequences(geo, p, near_planes(geo, p, plane_distance),
                              min(max_depth - 1, max_target_reflections))
         side_t.append((seq, img, _last_plane(seq), (seq >= 0).sum(1)))
     for i, s in enumerate(src):
+        if not wanted[i].any():
+            continue
         seq_s, img_s = sequences(geo, s, near_planes(geo, s, plane_distance), max_depth - 1)
         last_s = _last_plane(seq_s)
         ls = (seq_s >= 0).sum(1)
         for j, t in enumerate(tgt):
+            if not wanted[i, j]:
+                continue
             seq_t, img_t, last_t, lt = side_t[j]
 
             def pairs(qs, qt, w_sel):
@@ -346,8 +383,14 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
             first = (ls[qs] <= SEED_REFLECTIONS) & (lt[qt] <= SEED_REFLECTIONS)
             found, blocked = pairs(qs[first], qt[first], np.arange(geo.num_wedges))
             found, blocked = [found], [blocked]
-            if (~first).any() and len(found[0][2]):
-                f2, b2 = pairs(qs[~first], qt[~first], geo.with_neighbours(found[0][2]))
+            if (~first).any():
+                # the wedges the shorter chains reached, their neighbours, and the wedges of the
+                # planes the longer chains reflect on (a roof edge of the street's own walls,
+                # seen only after two reflections between them)
+                w2 = np.union1d(geo.with_neighbours(found[0][2]), np.union1d(
+                    geo.near_wedges(s, seq_s[qs[~first]], WEDGE_REACH * plane_distance),
+                    geo.near_wedges(t, seq_t[qt[~first]], WEDGE_REACH * plane_distance)))
+                f2, b2 = pairs(qs[~first], qt[~first], w2)
                 found.append(f2)
                 blocked.append(b2)
             if edge_reflections:
@@ -490,9 +533,22 @@ def duplicates(tau: np.ndarray, angles: np.ndarray, inter: np.ndarray,
     :param valid: [links, paths] bool
     :returns: [links, paths] bool, True on every copy after the first
     """
-    same = (np.abs(tau[:, :, None] - tau[:, None, :]) <= SAME_PATH_TOL_S)
-    same &= np.all(np.abs(angles[:, :, None] - angles[:, None, :]) <= SAME_ANGLE_RAD, axis=-1)
-    same &= np.all(inter[:, :, None] == inter[:, None, :], axis=-1)
-    same &= valid[:, :, None] & valid[:, None, :]
-    earlier = np.tril(np.ones(tau.shape[1:] * 2, bool), k=-1)   # [i, j]: j before i
-    return np.any(same & earlier, axis=-1)
+    li, pi = np.nonzero(valid)
+    order = np.lexsort((tau[li, pi], li))           # by link, then delay
+    li, pi = li[order], pi[order]
+    t = tau[li, pi]
+    dup = np.zeros(tau.shape, bool)
+    # pairs (k, k + d) of the sorted list: once no pair d apart in one link is within the
+    # delay tolerance, none further apart is
+    for d in range(1, len(li)):
+        a, b = np.arange(len(li) - d), np.arange(d, len(li))
+        near = (li[a] == li[b]) & (t[b] - t[a] <= SAME_PATH_TOL_S)
+        if not near.any():
+            break
+        a, b = a[near], b[near]
+        la, pa, pb = li[a], pi[a], pi[b]
+        same = np.all(np.abs(angles[la, pa] - angles[la, pb]) <= SAME_ANGLE_RAD, axis=-1)
+        same &= np.all(inter[la, pa] == inter[la, pb], axis=-1)
+        later = np.maximum(pa, pb)
+        dup[la[same], later[same]] = True
+    return dup

@@ -58,6 +58,8 @@ class StreetCandidateGenerator:
         self.plane_distance = plane_distance
         self.max_target_reflections = max_target_reflections
         self.last_num_candidates = 0
+        #: [n, 2] int (source, target) pairs the next call enumerates (None: every pair)
+        self.links: np.ndarray | None = None
 
     def __call__(self, mi_scene, src_positions, tgt_positions, samples_per_src,
                  max_num_paths_per_src, max_depth, los, specular_reflection, diffuse_reflection,
@@ -66,7 +68,7 @@ class StreetCandidateGenerator:
         tgt = _points(tgt_positions)
         depth = max(int(max_depth), 1)
         c = street_candidates(self.geo, src, tgt, depth, self.plane_distance,
-                              self.max_target_reflections, self._visible) \
+                              self.max_target_reflections, self._visible, links=self.links) \
             if diffraction and max_depth >= 1 else None
         num = len(c) if c is not None else 0
         if num == 1:
@@ -130,6 +132,39 @@ class StreetCandidateGenerator:
         ray.maxt = mi.Float(np.maximum(length - 2 * SEGMENT_END_MARGIN_M, 0).astype(np.float32))
         hit = np.asarray(self.mi_scene.ray_test(ray), bool)
         return finite & ~hit & (length > 2 * SEGMENT_END_MARGIN_M)
+
+
+class WantedLinks:
+    """Wraps a Sionna candidate generator and drops the candidates of (source, target) pairs
+    that are not wanted before the PathSolver refines them: a call can then hold many
+    point-to-point links (its rays are shared; only the wanted pairs' candidates go on to the
+    image method and the field calculator).
+
+    :param generator: a Sionna RT candidate generator (e.g. the PathSolver's own)
+    """
+
+    def __init__(self, generator):
+        self.generator = generator
+        #: [n, 2] int (source, target) pairs the next call keeps (None: every pair)
+        self.links: np.ndarray | None = None
+
+    def __call__(self, mi_scene, src_positions, tgt_positions, **kwargs):
+        buf = self.generator(mi_scene=mi_scene, src_positions=src_positions,
+                             tgt_positions=tgt_positions, **kwargs)
+        if self.links is None:
+            return buf
+        buf.schedule()
+        dr.eval()
+        buf.shrink()
+        num_src, num_tgt = dr.width(src_positions), dr.width(tgt_positions)
+        wanted = np.zeros((num_src, num_tgt), bool)
+        wanted[self.links[:, 0], self.links[:, 1]] = True
+        src = np.asarray(buf.source_indices, np.int64)
+        tgt = np.asarray(buf.target_indices, np.int64)
+        keep = np.flatnonzero(wanted[src, tgt]).astype(np.uint32)
+        self._alive = keep      # Dr.Jit may alias the array (see StreetCandidateGenerator)
+        buf = buf.gather(mi.UInt(keep))
+        return buf
 
 
 def _points(p) -> np.ndarray:

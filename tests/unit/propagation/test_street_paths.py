@@ -17,6 +17,7 @@ from scipy.optimize import brentq
 from veriloc_rt.config import RayTracingConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.propagation import street_paths as sp
+from veriloc_rt.propagation.link_metrics import SAME_PATH_TOL_S
 
 from .rt_scenes import boxes, ground, write_test_scene
 
@@ -93,6 +94,30 @@ def test_reflection_chains_alternate_between_reachable_planes():
     np.testing.assert_allclose(imgs[k], [0.0, 10.5, 1.5], atol=1e-12)
 
 
+def test_near_wedges_are_the_used_planes_edges_within_reach():
+    """A 10 x 10 x 15 m block: 8 wedges (4 vertical, 4 roof; the bottom edges stand on the
+    ground). Its face x = 0 has three (two vertical edges and a roof edge); from (-3, 5, 1.5)
+    the vertical edges are sqrt(3^2 + 5^2) = 5.83 m away, the roof edge sqrt(3^2 + 13.5^2) =
+    13.83 m."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(10.0, 10.0, 15.0))
+    box.apply_translation((5.0, 5.0, 7.5))
+    geo = sp.SceneGeometry.from_meshes([(1, box.vertices, box.faces)])
+    assert geo.num_wedges == 8
+    face = int(np.flatnonzero((geo.plane_n[:, 0] < -0.99) & (np.abs(geo.plane_d) < 1e-9))[0])
+    p = np.array([-3.0, 5.0, 1.5])
+    seq = np.array([[face, -1], [-1, -1]])
+
+    def kinds(w):
+        return sorted("roof" if abs(geo.edge_a[i, 2] - geo.edge_b[i, 2]) < 1e-9 else "vertical"
+                      for i in w)
+    assert kinds(geo.near_wedges(p, seq, 5.8)) == []
+    assert kinds(geo.near_wedges(p, seq, 5.9)) == ["vertical", "vertical"]
+    assert kinds(geo.near_wedges(p, seq, 13.9)) == ["roof", "vertical", "vertical"]
+    assert len(geo.near_wedges(p, np.full((1, 2), -1), 1e3)) == 0   # no plane used
+
+
 def test_duplicates_keep_the_first_copy_only():
     tau = np.array([[1e-6, 1e-6 + 5e-13, 1e-6 + 2e-11, 1e-6]])
     angles = np.zeros((1, 4, 4))
@@ -101,6 +126,26 @@ def test_duplicates_keep_the_first_copy_only():
     dup = sp.duplicates(tau, angles, inter, valid)
     # path 1 repeats path 0 (delay within 1 ps); path 2 is 20 ps away; path 3 another sequence
     assert dup.tolist() == [[False, True, False, False]]
+
+
+def test_duplicates_equal_the_pairwise_definition():
+    """The sorted search against every pair compared (a copy: same sequence, delays within the
+    tolerance, four angles within theirs, both valid; every copy after the first flagged), on
+    random links whose delays sit on a grid of 0.75 tolerances (chains of near delays)."""
+    rng = np.random.default_rng(5)
+    tol = SAME_PATH_TOL_S
+    for _ in range(200):
+        links, paths = rng.integers(1, 5), rng.integers(1, 25)
+        tau = 1e-6 + rng.integers(0, 5, (links, paths)) * 0.75 * tol
+        angles = rng.integers(0, 2, (links, paths, 4)) * 0.7 * sp.SAME_ANGLE_RAD
+        inter = rng.integers(0, 2, (links, paths, 2)).astype(np.uint8)
+        valid = rng.random((links, paths)) < 0.8
+        same = np.abs(tau[:, :, None] - tau[:, None, :]) <= tol
+        same &= np.all(np.abs(angles[:, :, None] - angles[:, None, :]) <= sp.SAME_ANGLE_RAD, -1)
+        same &= np.all(inter[:, :, None] == inter[:, None, :], axis=-1)
+        same &= valid[:, :, None] & valid[:, None, :]
+        want = np.any(same & np.tril(np.ones((paths, paths), bool), k=-1), axis=-1)
+        assert np.array_equal(sp.duplicates(tau, angles, inter, valid), want)
 
 
 @pytest.mark.raytrace

@@ -30,6 +30,10 @@ def test_plan_calls_bounds_work_and_targets():
     # one source (a BS, forward mode) to many targets: all pairs wanted, one call
     calls = plan_calls(np.zeros(50, int), np.arange(50), 1, 10**9)
     assert len(calls) == 1
+    # Sionna's candidate buffer grows with the traced pairs: at most max_pairs of them a call
+    calls = plan_calls(np.repeat(np.arange(40), 3), np.tile(np.arange(3), 40), 1, 10**9,
+                       max_pairs=30)
+    assert [len(c) for c in calls] == [30, 30, 30, 30]
 
 
 @pytest.mark.raytrace
@@ -67,20 +71,28 @@ def test_trace_tiny_canyon_and_cache(tmp_path):
 
 
 @pytest.mark.raytrace
-def test_a_links_paths_do_not_depend_on_the_other_links_traced(tmp_path):
-    """One source per PathSolver call: a UE's links traced with the whole drive's or alone are
-    bit-identical (with sources batched, Sionna's sampled diffraction gave a source other draws
-    next to other sources, and the links differed), and so are the links of a run that traces
-    the adversary at every point or only at some."""
+@pytest.mark.parametrize("edge_candidates", ["exhaustive", "both"])
+def test_a_links_paths_do_not_depend_on_the_other_links_traced(tmp_path, edge_candidates):
+    """A UE's links traced with the whole drive's (many sources a PathSolver call, the
+    default's deterministic rays) or alone are bit-identical, and so are the links of a run that
+    traces the adversary at every point or only at some (point-to-point links sharing calls,
+    the unwanted pairs' candidates dropped before refinement); with Sionna's sampled diffraction
+    ('both') each call has one source, and the same holds."""
     from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
 
-    cfg = config_from_dict(TINY)
+    cfg = config_from_dict(TINY | {"propagation": {"raytrace": TINY["propagation"]["raytrace"]
+                                                   | {"edge_candidates": edge_candidates}}})
     geo = build_geometry(cfg, tmp_path / "scene")
     fid = cfg.propagation.raytrace
     tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed, None)
     tx = geo.bs_pos[geo.serving].reshape(-1, 3)
     rx = np.repeat(geo.ue.pos, 3, axis=0)
     every = trace_links(tracer, tx, rx, True, fid.rays_per_source)
+    sources = len(np.unique(geo.ue.pos.round(3), axis=0))
+    if edge_candidates == "exhaustive":   # batched: the test compares batched with alone
+        assert tracer.stats["calls"] < sources / 2
+    else:
+        assert tracer.stats["calls"] == sources
     for i in (0, geo.num_points // 2, geo.num_points - 1):
         alone = trace_links(tracer, tx[3 * i:3 * i + 3], rx[3 * i:3 * i + 3], True, fid.rays_per_source)
         for j in range(3):   # the valid paths (the padding follows the longest link traced)
