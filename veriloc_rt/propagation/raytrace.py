@@ -46,7 +46,7 @@ from ..configtools import to_dict
 from ..constants import SPEED_OF_LIGHT
 from ..scene.export import scene_digest
 from .cir import ADVERSARY_TX, CIR, INTERACTION_NONE, NO_TX, array_response, doppler_shift, ula_element_positions
-from .sionna_rt import RawPaths
+from .sionna_rt import RawPaths, sampled_diffraction
 
 log = logging.getLogger(__name__)
 
@@ -75,8 +75,7 @@ Progress = Callable[[int, int], None]
 def deterministic_rays(fid: RayTracingConfig) -> bool:
     """Whether Sionna's sampled rays draw no interaction at random: then a link's paths do not
     depend on the other sources of its call."""
-    sampled_diffraction = fid.diffraction and fid.edge_candidates != "exhaustive"
-    return not (sampled_diffraction or fid.diffuse_reflection or fid.refraction)
+    return not (sampled_diffraction(fid) or fid.diffuse_reflection or fid.refraction)
 
 
 @dataclass(frozen=True, eq=False)

@@ -212,13 +212,12 @@ class SionnaTracer:
         for i, p in enumerate(rx_pos):
             scene.add(rt.Receiver(f"rx{i}", position=[float(v) for v in p]))
         enumerated = fid.edge_candidates != "sampled" and fid.diffraction and fid.max_depth >= 1
-        sampled_diffraction = fid.diffraction and fid.edge_candidates != "exhaustive"
         self._wanted.links = pairs
         paths = self.solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=self.max_paths_per_src,
                             samples_per_src=rays_per_source, synthetic_array=True, los=fid.los,
                             specular_reflection=fid.specular_reflection,
                             diffuse_reflection=fid.diffuse_reflection,
-                            refraction=fid.refraction, diffraction=sampled_diffraction,
+                            refraction=fid.refraction, diffraction=sampled_diffraction(fid),
                             seed=self.seed)
         raw = _extract(paths, len(tx_pos), len(rx_pos), pairs)
         if enumerated:
@@ -231,6 +230,11 @@ class SionnaTracer:
             self.last_num_edge_candidates = generator.last_num_candidates
             raw = raw.merge(_extract(paths, len(tx_pos), len(rx_pos), pairs))
         return raw
+
+
+def sampled_diffraction(fid: RayTracingConfig) -> bool:
+    """Whether Sionna's own rays sample diffraction (its random draws) under ``fid``."""
+    return fid.diffraction and fid.edge_candidates != "exhaustive"
 
 
 def polarimetric_arrays(rt) -> tuple:
