@@ -32,15 +32,15 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from veriloc_rt.channel import add_noise  # noqa: E402
-from veriloc_rt.channel_config import ChannelConfig, ReceiverConfig  # noqa: E402
+from veriloc_rt.phy.channel import add_noise  # noqa: E402
+from veriloc_rt.config.channel import ChannelConfig, ReceiverConfig  # noqa: E402
 from veriloc_rt.config import ArrayConfig  # noqa: E402
-from veriloc_rt.nr.config import NRConfig  # noqa: E402
+from veriloc_rt.config.nr import NRConfig  # noqa: E402
 from veriloc_rt.propagation.cir import ula_element_positions  # noqa: E402
 from veriloc_rt.propagation.uma import uma_cir  # noqa: E402
-from veriloc_rt.receiver.chain import PositioningChain  # noqa: E402
-from veriloc_rt.security.config import SecurityConfig  # noqa: E402
-from veriloc_rt.security.keys import simulated_keys  # noqa: E402
+from veriloc_rt.phy.receiver.chain import PositioningChain  # noqa: E402
+from veriloc_rt.config.security import SecurityConfig  # noqa: E402
+from veriloc_rt.phy.security.keys import simulated_keys  # noqa: E402
 
 FC = 3.5e9
 SEED = 2024
@@ -183,7 +183,7 @@ def accuracy(name: str, cir, truth: np.ndarray) -> None:
 def load_rt(cache: str, scene: str, num_points: int):
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.raytrace import trace
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.world.geometry import build_geometry
     cfg = config_from_dict({"trajectory": {"num_points": num_points}})
     geo = build_geometry(cfg, scene)
     prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=cache)

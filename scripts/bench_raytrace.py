@@ -38,7 +38,7 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path,
     """Trace in this process and save first-path delay/power per link to ``out``."""
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.world.geometry import build_geometry
 
     cfg = config_from_dict({"trajectory": {"num_points": points},
                             "propagation": {"raytrace": {"direction": direction,

@@ -14,12 +14,13 @@ import math
 
 import pytest
 
-from veriloc_rt import montecarlo
+from veriloc_rt.sim import montecarlo
 from veriloc_rt.cli import main
 from veriloc_rt.config import config_from_dict
-from veriloc_rt.engine import run
+from veriloc_rt.sim.engine import run
 from veriloc_rt.errors import InputError
-from veriloc_rt.montecarlo import aggregate, local_cluster, mean_ci, realisation_config
+from veriloc_rt.sim.montecarlo import aggregate, mean_ci, realisation_config
+from veriloc_rt.sim.executors import local_cluster
 
 from .test_cli import cli
 

@@ -6,10 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from veriloc_rt.nr.config import NRConfig
-from veriloc_rt.nr.ofdm import OFDM
-from veriloc_rt.threats import (Jammer, JammingConfig, Meaconer, MeaconingConfig, dbm_to_w,
-                                fractional_delay, jamming_grid, jamming_iq, meacon, prs_band_hz)
+from veriloc_rt.config.nr import NRConfig
+from veriloc_rt.phy.nr.ofdm import OFDM
+from veriloc_rt.attacks import (Jammer, Meaconer, dbm_to_w, fractional_delay, jamming_grid,
+                                jamming_iq, meacon, prs_band_hz)
+from veriloc_rt.config.attacks import JammingConfig, MeaconingConfig
 
 FS = 30.72e6
 N = 8192
