@@ -266,7 +266,7 @@ MONTECARLO_DOC = {
     "error_p999_m": "99.9th percentile of that error, m",
 }
 
-#: bench.csv columns (veriloc_rt/bench.py)
+#: bench.csv columns (veriloc_rt/studies/bench.py)
 BENCH_DOC = {
     "group": "`raytrace` (tracing knobs, cost per serving link) or `waveform` (chain knobs, "
              "cost per point)",
@@ -373,7 +373,7 @@ def outputs_md() -> str:
            "What each command writes into its `--out` folder. The CSV columns, the "
            "`metrics.json` keys and the timing stages below are generated from the code "
            "that writes them; the file lists and the JSON layouts of `run.json` and "
-           "`propagation_summary.json` are described by hand from `veriloc_rt/engine.py`, "
+           "`propagation_summary.json` are described by hand from `veriloc_rt/sim/engine.py`, "
            "`compare.py` and `validate.py`. Units: SI, or the unit in the name.", "",
            "## `veriloc-rt run`", "",
            "| file | holds |", "| --- | --- |",
@@ -424,7 +424,7 @@ def outputs_md() -> str:
     out += _columns_table(montecarlo.CSV_COLUMNS, _montecarlo_column)
     out += ["", "## `veriloc-rt compare`", "",
             "`raytrace/` and `uma/` hold the two complete runs (the files above). Beside them "
-            "(written by `veriloc_rt/compare.py`):", "",
+            "(written by `veriloc_rt/studies/compare.py`):", "",
             "| file | holds |", "| --- | --- |",
             "| `comparison.md` | the channel, benign-error and detector tables "
             "([example](compare.md)) |",
@@ -439,7 +439,7 @@ def outputs_md() -> str:
             "| `comparison_cdf.png`, `comparison_detectors.png` | error CDFs; detector rates "
             "side by side |",
             "", "## `veriloc-rt validate`", "",
-            "Written by `veriloc_rt/validate.py` ([what is compared](validation.md)):", "",
+            "Written by `veriloc_rt/studies/validate.py` ([what is compared](validation.md)):", "",
             "| file | holds |", "| --- | --- |",
             "| `validation.json` | inputs, per-distance-bin table, summary, each model's "
             "validity flags |",

@@ -172,9 +172,9 @@ def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
     grid (frequency) or OFDM-modulated into the IQ (time, OFDM front end), gives the same
     estimates up to the channel's own time/frequency difference (FRONT_END_SAMPLES), here at
     0 dB per RE and antenna where independent noise would move the ToAs by ~0.05 sample."""
-    from veriloc_rt.studies.diagnostics import _shared_noise_chain
+    from veriloc_rt.studies.diagnostics import shared_noise_chain
 
-    cls = _shared_noise_chain()
+    cls = shared_noise_chain()
     ue = np.array([37.0, -21.0, 1.5])
     nv = thermal_noise_variance(rate, ChannelConfig().ue_noise_figure_db)
     probe = make_chain("frequency", rate)

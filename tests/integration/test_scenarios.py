@@ -183,12 +183,12 @@ def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
     seen = []
     for scenario in cfg.run.scenarios:
         for i in range(geo.num_points):
-            runner._benign.clear()
-            std = runner._chain("standard", runner.chains["standard"], scenario, 0, i)
-            runner._benign.clear()
-            reuse = runner._chain("ds", runner.ds_chain, scenario, 0, i, std)
-            runner._benign.clear()
-            own = runner._chain("ds", runner.ds_chain, scenario, 0, i)
+            runner.clear_cache()
+            std = runner.chain_result("standard", runner.chains["standard"], scenario, 0, i)
+            runner.clear_cache()
+            reuse = runner.chain_result("ds", runner.ds_chain, scenario, 0, i, std)
+            runner.clear_cache()
+            own = runner.chain_result("ds", runner.ds_chain, scenario, 0, i)
             np.testing.assert_array_equal(reuse.tags_valid, own.tags_valid)
             np.testing.assert_array_equal(reuse.detected, own.detected)
             seen.extend(own.tags_valid)

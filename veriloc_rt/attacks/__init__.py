@@ -7,9 +7,9 @@ the signal a positioning chain receives at a trajectory point.
 
 from .fbs import (FalseBaseStation, FBSPlan, fbs_delays, fbs_delays_absolute, spoofer_replicas,
                   target_position)
-from .jamming import Jammer, dbm_to_w, jamming_grid, jamming_iq, prs_band_hz
+from .jamming import Jammer, jamming_grid, jamming_iq, prs_band_hz
 from .meaconing import Meaconer, fractional_delay, meacon
 
 __all__ = ["FalseBaseStation", "FBSPlan", "fbs_delays", "fbs_delays_absolute",
-           "spoofer_replicas", "target_position", "Jammer", "dbm_to_w", "jamming_grid",
+           "spoofer_replicas", "target_position", "Jammer", "jamming_grid",
            "jamming_iq", "prs_band_hz", "Meaconer", "fractional_delay", "meacon"]

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config.attacks import FBSConfig
-from ..constants import SPEED_OF_LIGHT
+from ..constants import SPEED_OF_LIGHT, dbm_to_watt
 from ..config.nr import NRConfig
 from ..phy.nr.grid import ReLayout
 from ..phy.nr.prs import qpsk
@@ -140,7 +140,7 @@ class FalseBaseStation:
 
     @property
     def power_w(self) -> float:
-        return 10.0 ** ((self.config.power_dbm - 30.0) / 10.0)
+        return float(dbm_to_watt(self.config.power_dbm))
 
     def __call__(self, bs_pos, adversary, ue_estimate) -> FBSPlan:
         """Plan for one point.

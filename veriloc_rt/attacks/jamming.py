@@ -23,13 +23,12 @@ import math
 import numpy as np
 
 from ..config.attacks import JammingConfig
+from ..constants import dbm_to_watt
 from ..config.nr import NRConfig
 
-__all__ = ["JammingConfig", "Jammer", "jamming_iq", "jamming_grid", "prs_band_hz", "dbm_to_w"]
+__all__ = ["JammingConfig", "Jammer", "jamming_iq", "jamming_grid", "prs_band_hz"]
 
 
-def dbm_to_w(power_dbm: float) -> float:
-    return 10.0 ** ((power_dbm - 30.0) / 10.0)
 
 
 def prs_band_hz(nr: NRConfig) -> tuple[float, float]:
@@ -99,7 +98,7 @@ class Jammer:
 
     @property
     def power_w(self) -> float:
-        return dbm_to_w(self.config.power_dbm)
+        return float(dbm_to_watt(self.config.power_dbm))
 
     def iq(self, num_samples: int, rng: np.random.Generator) -> np.ndarray:
         """x : [num_samples] complex128 at ``nr.resolved_sample_rate_hz``, W."""

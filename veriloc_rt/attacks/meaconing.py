@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from ..config.attacks import MeaconingConfig
+from ..constants import dbm_to_watt
 
 __all__ = ["MeaconingConfig", "Meaconer", "meacon", "fractional_delay"]
 
@@ -78,7 +79,7 @@ class Meaconer:
 
     @property
     def power_w(self) -> float:
-        return 10.0 ** ((self.config.power_dbm - 30.0) / 10.0)
+        return float(dbm_to_watt(self.config.power_dbm))
 
     def __call__(self, rx, sample_rate_hz: float) -> tuple[np.ndarray, float]:
         return meacon(rx, sample_rate_hz, self.power_w, self.config.processing_delay_s,

@@ -25,8 +25,7 @@ class SceneConfig:
                             lo=20.0, hi=5000.0)
     margin_m: float = param(150.0, "emit only buildings within this 2-D distance of a used BS "
                             "or of the trajectory (crop: model no more than the scene needs; "
-                            "150 m: `veriloc-rt bench` measured the same tracing cost as 20 or "
-                            "60 m and fewer first paths off the reference)",
+                            "cost and accuracy of the margins: docs/performance.md)",
                             lo=0.0, hi=5000.0)
     building_material: str = param("concrete", "ITU-R P.2040 material of the buildings",
                                    choices=("concrete", "brick", "plasterboard", "wood",

@@ -34,7 +34,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
-from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE
+from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
 from .nr.ofdm import OFDM
 from ..propagation.cir import CIR, array_response
 
@@ -42,11 +42,6 @@ __all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "receiver_noise_var
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupancy_groups",
            "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
-
-
-def dbm_to_watt(power_dbm) -> np.ndarray | float:
-    """10^((P_dBm - 30) / 10), W."""
-    return 10.0 ** ((np.asarray(power_dbm, dtype=float) - 30.0) / 10.0)
 
 
 def thermal_noise_variance(sample_rate_hz: float, noise_figure_db: float) -> float:
@@ -113,7 +108,7 @@ class Links:
         the element's plane-wave phase removed, ``g_e conj(a_e)``, averaged over elements.
         """
         down = cls.from_cir(cir, point)
-        wavelength = 299_792_458.0 / cir.carrier_frequency
+        wavelength = SPEED_OF_LIGHT / cir.carrier_frequency
         a = array_response(cir.aoa_az[point], cir.aoa_zen[point], element_pos, wavelength)
         centre = np.mean(down.gains * np.conj(a), axis=1)                   # [links, paths]
         centre = np.where(down.valid, centre, 0.0)

@@ -147,7 +147,7 @@ class ScenarioRunner:
                 if ck in out or (sc != scenario and ck in self._benign):
                     continue
                 std = out.get(self._ck("standard", sc, i)) if k == "ds" else None
-                out[ck] = self._chain(k, c, sc, m, i, std)
+                out[ck] = self.chain_result(k, c, sc, m, i, std)
         return out
 
     def _scenarios_at(self, scenario: str, i: int) -> list[str]:
@@ -169,15 +169,23 @@ class ScenarioRunner:
         runner does, from :meth:`store_chains`)."""
         before = dict(self.timing)
         res = self.compute_chains(scenario, i)
-        self._benign.clear()
+        self.clear_cache()
         return i, res, {k: self.timing[k] - before[k] for k in before}
+
+    def clear_cache(self) -> None:
+        """Forget every cached chain result."""
+        self._benign.clear()
 
     def store_chains(self, results: dict) -> None:
         """Results from :meth:`compute_chains` (run elsewhere) for the next :meth:`point` calls."""
         self._benign.update(results)
 
-    def _chain(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int,
-               estimates: ChainResult | None = None) -> ChainResult:
+    def chain_result(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int,
+                     estimates: ChainResult | None = None) -> ChainResult:
+        """The result of ``chain`` (cache key ``key``: 'standard', 'ds', 'encrypted') at point
+        ``i`` of ``scenario`` with PRS mode ``mode`` (0 standard, 1 encrypted); benign results
+        come from and go to the cache (:meth:`clear_cache`), attack results are used once.
+        ``estimates``: the DS chain reuses the standard call's timing."""
         attack = scenario != "none" and bool(self.window[i])
         ck = self._ck(key, scenario, i)
         if ck in self._benign:
@@ -207,9 +215,9 @@ class ScenarioRunner:
         """Evaluate point ``i`` of ``scenario`` (``prev``: the previous evaluated point)."""
         cfg = self.cfg
         true_xy = self.geo.ue.pos[i, :2]
-        res = self._chain("standard", self.chains["standard"], scenario, 0, i)
+        res = self.chain_result("standard", self.chains["standard"], scenario, 0, i)
         est, err, out = self._fix(res, true_xy)
-        ds = self._chain("ds", self.ds_chain, scenario, 0, i, res) if self.ds_chain is not None else res
+        ds = self.chain_result("ds", self.ds_chain, scenario, 0, i, res) if self.ds_chain is not None else res
         t = time.perf_counter()
         v = {"HMAC": self.hmac(res.tags_valid, res.detected).valid,
              "DigSig": self.digsig(ds.tags_valid, ds.detected).valid}
@@ -228,7 +236,7 @@ class ScenarioRunner:
         row = PointRow(i, float(self.geo.ue.t[i]), scenario != "none" and bool(self.window[i]),
                        v, true_xy.copy(), est, err, out)
         if "encrypted" in self.chains:
-            r2 = self._chain("encrypted", self.chains["encrypted"], scenario, 1, i)
+            r2 = self.chain_result("encrypted", self.chains["encrypted"], scenario, 1, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
         return row
 

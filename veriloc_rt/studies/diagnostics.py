@@ -99,7 +99,7 @@ def _grid_noise(x: np.ndarray, variance: float, rng: np.random.Generator, ofdm, 
     return out
 
 
-def _shared_noise_chain():
+def shared_noise_chain():
     """A :class:`PositioningChain` whose downlink (from ``dl_rng``) and uplink (from the point's
     generator) noise is drawn by :func:`_grid_noise`: every chain with the same bandwidth sees
     the same noise on the same REs, whatever its sample rate, domain or number of slots (its
@@ -153,7 +153,7 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
     if shared_noise and cfg.channel.domain == "time" and cfg.channel.time_front_end != "ofdm":
         raise ValueError("shared noise reaches only the FFT windows: the time domain needs "
                          "channel.time_front_end 'ofdm'")
-    cls = _shared_noise_chain() if shared_noise else PositioningChain
+    cls = shared_noise_chain() if shared_noise else PositioningChain
     chain = cls(cfg.nr, cfg.security, cfg.channel, cfg.receiver,
                 cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys)
     d = cfg.detectors

@@ -208,7 +208,7 @@ class ToAEstimator:
         return idx, lags, n_up
 
     @staticmethod
-    def _power(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int) -> np.ndarray:
+    def lag_power(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int) -> np.ndarray:
         """Antenna-summed power of the profiles on the lag grid, sum_a |c_a(tau)|^2:
         [..., num_ant, num_bins] -> [..., num_lags] float64 (transform in g's precision).
 
@@ -235,7 +235,7 @@ class ToAEstimator:
         return out
 
     @staticmethod
-    def _doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
+    def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
         """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
         Single precision: the maps built from it only rank hypotheses and cells against
@@ -295,8 +295,8 @@ class ToAEstimator:
         if cfg.doppler_max_hz > 0:
             nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
             idx1, lags1, n1 = self._grid(cs, 1)
-            g_nu = self._doppler_spectra(cs, nus, tc)                                  # [V, A, K]
-            metric = self._power(g_nu, idx1, lags1, n1).max(axis=-1)
+            g_nu = self.doppler_spectra(cs, nus, tc)                                  # [V, A, K]
+            metric = self.lag_power(g_nu, idx1, lags1, n1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
@@ -306,7 +306,7 @@ class ToAEstimator:
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
-        m_rect = self._power(g, idx, lags, n_up)
+        m_rect = self.lag_power(g, idx, lags, n_up)
         tau_pk = float(lags[int(np.argmax(m_rect))] * step)
         x = cs.at_delay(tau_pk) * rot                                              # [A, B]
         ref = np.sum(x, axis=1)
@@ -321,7 +321,7 @@ class ToAEstimator:
                 nu += dnu
                 rot = np.exp(-2j * np.pi * nu * tc)
                 g = cs.combine(rot)
-                m_rect = self._power(g, idx, lags, n_up)
+                m_rect = self.lag_power(g, idx, lags, n_up)
         # 3. detection against the exact noise floor
         # the floor: the thermal one from ``noise_var`` (free symbols), or, when larger, a CFAR
         # estimate from the median of the delay profile. Interference confined to the PRS REs
@@ -377,7 +377,7 @@ class ToAEstimator:
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
                 idx1, lags1, n1 = idx, lags, n_up
-                dmap = self._power(g_nu * win.astype(np.float32), idx1, lags1, n1)  # [V, L1]
+                dmap = self.lag_power(g_nu * win.astype(np.float32), idx1, lags1, n1)  # [V, L1]
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
@@ -389,13 +389,13 @@ class ToAEstimator:
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
                     g = cs.combine(rot)
-                metric = self._power(g * win, idx, lags, n_up)
+                metric = self.lag_power(g * win, idx, lags, n_up)
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
                 i = int(np.clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
                 while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
                     i += 1 if metric[i + 1] > metric[i] else -1
             else:
-                metric = self._power(g * win, idx, lags, n_up)
+                metric = self.lag_power(g * win, idx, lags, n_up)
                 i = self._first_crossing(metric, floor, 1, dof)
         # 5. sub-sample refinement
         if 0 < i < metric.size - 1:

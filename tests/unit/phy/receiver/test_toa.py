@@ -199,8 +199,8 @@ def test_comb_parts_hold_only_the_occupied_bins_and_match_the_dense_products():
     tc = cs.block_times - cs.block_times.mean()
     flat = dataclasses.replace(cs, spectra=cs.dense, parts=None, ref_power=np.ones_like(cs.ref_power))
     assert flat.occupied is None                     # every bin occupied: the dense product
-    d_ref = ToAEstimator._doppler_spectra(flat, nus, tc)
-    np.testing.assert_allclose(ToAEstimator._doppler_spectra(cs, nus, tc), d_ref,
+    d_ref = ToAEstimator.doppler_spectra(flat, nus, tc)
+    np.testing.assert_allclose(ToAEstimator.doppler_spectra(cs, nus, tc), d_ref,
                                atol=1e-6 * np.abs(d_ref).max())
     w = np.exp(1j * rng.uniform(0, 2 * np.pi, tc.size))
     np.testing.assert_allclose(cs.combine(w), flat.combine(w), rtol=1e-12, atol=1e-12 * np.abs(flat.combine(w)).max())
@@ -231,7 +231,7 @@ def test_spatial_dof_equals_the_eigenvalue_definition():
 
 @pytest.mark.parametrize("contiguous", [True, False])
 def test_profile_power_equals_the_explicit_dft(contiguous):
-    """ToAEstimator._power: sum_a |sum_k g_ak e^{j 2 pi k l / n}|^2 on the searched lags (one
+    """ToAEstimator.lag_power: sum_a |sum_k g_ak e^{j 2 pi k l / n}|^2 on the searched lags (one
     wrapped run of the FFT's output, or any lags through the gather), against the DFT written
     out (second method; tolerance: double-precision FFT rounding, 1e-9 relative)."""
     rng = np.random.default_rng(5)
@@ -240,7 +240,7 @@ def test_profile_power_equals_the_explicit_dft(contiguous):
     g = rng.standard_normal((3, 4, 40)) + 1j * rng.standard_normal((3, 4, 40))
     n = 256
     lags = np.arange(-9, 120) if contiguous else np.array([-9, -2, 0, 5, 77, 130])
-    got = ToAEstimator._power(g, idx, lags, n)
+    got = ToAEstimator.lag_power(g, idx, lags, n)
     dft = np.exp(2j * np.pi * np.outer(lags, pos) / n)                       # [L, K]
     want = np.sum(np.abs(np.einsum("lk,vak->val", dft, g)) ** 2, axis=1)     # [V, L]
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * want.max())

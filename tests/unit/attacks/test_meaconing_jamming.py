@@ -8,7 +8,8 @@ import pytest
 
 from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.phy.nr.ofdm import OFDM
-from veriloc_rt.attacks import (Jammer, Meaconer, dbm_to_w, fractional_delay, jamming_grid,
+from veriloc_rt.constants import dbm_to_watt
+from veriloc_rt.attacks import (Jammer, Meaconer, fractional_delay, jamming_grid,
                                 jamming_iq, meacon, prs_band_hz)
 from veriloc_rt.config.attacks import JammingConfig, MeaconingConfig
 
@@ -64,7 +65,7 @@ def test_meaconing_preserves_rstds_two_path_composite(rng):
     tx, gain = Meaconer(cfg)(r, FS)
     # relay output power: the AGC sets dBm on the input; the delay drops only the zero tail
     assert 10 * np.log10(np.mean(np.abs(tx) ** 2) * 1e3) == pytest.approx(48.0, abs=0.05)
-    assert gain == pytest.approx(math.sqrt(dbm_to_w(48.0) / np.mean(np.abs(r) ** 2)))
+    assert gain == pytest.approx(math.sqrt(dbm_to_watt(48.0) / np.mean(np.abs(r) ** 2)))
     # over the air to the UE: a further common delay
     at_ue = fractional_delay(tx, 5.2 / FS, FS)
     d1, d2 = _peak_delay(at_ue, s1), _peak_delay(at_ue, s2)
@@ -74,7 +75,7 @@ def test_meaconing_preserves_rstds_two_path_composite(rng):
 
 def test_meaconing_gain_cap_and_inputs(rng):
     r = 1e-6 * _bandlimited(rng)
-    tx, g = meacon(r, FS, dbm_to_w(48.0), 0.0, max_gain_db=60.0)
+    tx, g = meacon(r, FS, dbm_to_watt(48.0), 0.0, max_gain_db=60.0)
     assert g == pytest.approx(1e3)
     np.testing.assert_allclose(tx, 1e3 * r, atol=1e-15)
     with pytest.raises(ValueError, match="delay_s"):
@@ -88,7 +89,7 @@ def test_jamming_iq_power_and_band_occupancy(rng):
     n = 4 * nr.fft_size
     jam = Jammer(nr, JammingConfig(power_dbm=48.0))
     x = jam.iq(n, rng)
-    p = dbm_to_w(48.0)
+    p = dbm_to_watt(48.0)
     spec = np.abs(np.fft.fft(x, norm="ortho")) ** 2
     f = np.fft.fftfreq(n, 1 / fs)
     inband = (f >= band[0]) & (f < band[1])
@@ -106,7 +107,7 @@ def test_jamming_iq_power_and_band_occupancy(rng):
 
 def test_jamming_grid_through_ofdm_gives_requested_power(rng):
     nr = NRConfig()
-    p = dbm_to_w(48.0)
+    p = dbm_to_watt(48.0)
     g = Jammer(nr).grid((4, 14, nr.num_subcarriers), rng)
     assert np.var(g) == pytest.approx(p * nr.fft_size / nr.num_subcarriers, rel=SIGMAS / math.sqrt(g.size))
     x = OFDM(nr).modulate(g)  # unitary OFDM: per-RE variance -> time power
