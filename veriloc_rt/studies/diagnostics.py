@@ -136,7 +136,7 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
 
     :param geometry: the run's :class:`~veriloc_rt.world.geometry.Geometry` (true UE positions)
     :param bs_ue: CIR [num_points, num_bs] serving BS -> UE
-    :param keys: by BS id (:func:`veriloc_rt.sim.engine.run_keys`)
+    :param keys: by BS id (:func:`veriloc_rt.sim.run_folder.run_keys`)
     :param noise: name of the noise stream (another name: other noise draws)
     :param progress: called as ``progress(done, total)``
     :param shared_noise: the noise is a per-RE grid drawn slot-major (:func:`_grid_noise`;
