@@ -32,15 +32,16 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from veriloc_rt.channel import add_noise  # noqa: E402
-from veriloc_rt.channel_config import ChannelConfig, ReceiverConfig  # noqa: E402
+from veriloc_rt.phy.channel import add_noise  # noqa: E402
+from veriloc_rt.config.channel import ChannelConfig, ReceiverConfig  # noqa: E402
 from veriloc_rt.config import ArrayConfig  # noqa: E402
-from veriloc_rt.nr.config import NRConfig  # noqa: E402
+from veriloc_rt.config.nr import NRConfig  # noqa: E402
 from veriloc_rt.propagation.cir import ula_element_positions  # noqa: E402
 from veriloc_rt.propagation.uma import uma_cir  # noqa: E402
-from veriloc_rt.receiver.chain import PositioningChain  # noqa: E402
-from veriloc_rt.security.config import SecurityConfig  # noqa: E402
-from veriloc_rt.security.keys import simulated_keys  # noqa: E402
+from veriloc_rt.phy.receiver.chain import PositioningChain  # noqa: E402
+from veriloc_rt.config.security import SecurityConfig  # noqa: E402
+from veriloc_rt.constants import SPEED_OF_LIGHT  # noqa: E402
+from veriloc_rt.phy.security.keys import simulated_keys  # noqa: E402
 
 FC = 3.5e9
 SEED = 2024
@@ -52,7 +53,7 @@ def synthetic_uma(num_points: int, mode: str, seed: int):
     phi = 0.1 * np.arange(num_points)
     ue = np.stack([100 * np.cos(phi), 100 * np.sin(phi), np.full(num_points, 1.5)], axis=-1)
     vel = np.stack([-10 * np.sin(phi), 10 * np.cos(phi), np.zeros(num_points)], axis=-1)
-    ep = ula_element_positions(5, 0.5 * 299_792_458.0 / FC, 0.0)
+    ep = ula_element_positions(5, 0.5 * SPEED_OF_LIGHT / FC, 0.0)
     cir = uma_cir(np.broadcast_to(bs, (num_points, 3, 3)).copy(), ue, vel, np.zeros((num_points, 3, 3)),
                   np.tile([0, 1, 2], (num_points, 1)), FC, ep, np.random.default_rng(seed), mode)
     return cir, ue
@@ -183,7 +184,7 @@ def accuracy(name: str, cir, truth: np.ndarray) -> None:
 def load_rt(cache: str, scene: str, num_points: int):
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.raytrace import trace
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.world.geometry import build_geometry
     cfg = config_from_dict({"trajectory": {"num_points": num_points}})
     geo = build_geometry(cfg, scene)
     prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=cache)

@@ -170,7 +170,7 @@ def child(job: Path, out: Path) -> None:
 # -- study (parent) --------------------------------------------------------------------------
 def build_links(cfg_data: dict, work: Path, every: int, max_points: int | None):
     from veriloc_rt.config import config_from_dict
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.world.geometry import build_geometry
 
     cfg = config_from_dict(cfg_data)
     geo = build_geometry(cfg, work / "scene")

@@ -17,11 +17,11 @@ import time
 
 import numpy as np
 
-from veriloc_rt.nr.config import NRConfig
-from veriloc_rt.nr.transmitter import PRSTransmitter
-from veriloc_rt.security.config import SecurityConfig
-from veriloc_rt.security.keys import public_view, simulated_keys
-from veriloc_rt.security.tag_receiver import TagVerifier
+from veriloc_rt.config.nr import NRConfig
+from veriloc_rt.phy.transmitter import PRSTransmitter
+from veriloc_rt.config.security import SecurityConfig
+from veriloc_rt.phy.security.keys import public_view, simulated_keys
+from veriloc_rt.phy.receiver.tag_verifier import TagVerifier
 
 BS_IDS = (101, 102, 103)
 

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from veriloc_rt.config import RayTracingConfig
+from veriloc_rt.constants import SPEED_OF_LIGHT
 
 SWEEP = [("forward", 100_000), ("forward", 300_000), ("forward", 1_000_000),
          ("reciprocal", 3_000), ("reciprocal", 10_000), ("reciprocal", 30_000),
@@ -38,7 +39,7 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path,
     """Trace in this process and save first-path delay/power per link to ``out``."""
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.world.geometry import build_geometry
 
     cfg = config_from_dict({"trajectory": {"num_points": points},
                             "propagation": {"raytrace": {"direction": direction,
@@ -108,7 +109,7 @@ def main() -> int:
     table = []
     for (direction, rays), r in results.items():
         both = r["has"] & ref["has"]
-        dtau = np.abs(r["first_tau"][both] - ref["first_tau"][both]) * 299_792_458.0
+        dtau = np.abs(r["first_tau"][both] - ref["first_tau"][both]) * SPEED_OF_LIGHT
         dp1 = 10 * np.log10(r["first_pow"][both] / ref["first_pow"][both])
         dpt = 10 * np.log10(r["total_pow"][both] / ref["total_pow"][both])
         row = {"direction": direction, "rays_per_source": int(rays),

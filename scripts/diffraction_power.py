@@ -20,7 +20,7 @@ import numpy as np
 
 from veriloc_rt.config import load_config
 from veriloc_rt.propagation.raytrace import trace
-from veriloc_rt.scenario import build_geometry
+from veriloc_rt.world.geometry import build_geometry
 
 
 def main() -> int:

@@ -14,31 +14,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
-
-import numpy as np
 
 from veriloc_rt.config import load_config
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.errors import InputError
-from veriloc_rt.scenario import build_geometry
-from veriloc_rt.threats import biased_fix_outcomes
-
-
-def sweep(cfg, biases_m, slots) -> list[tuple[float, float, float, float]]:
-    """(bias in m, success %, large error %, service failure %) per bias over the attack window."""
-    with tempfile.TemporaryDirectory() as tmp:
-        geo = build_geometry(cfg, tmp)
-    window = np.flatnonzero(cfg.run.attack_points(geo.num_points))
-    bs = geo.bs_pos[geo.serving[window]]
-    out = []
-    for bias in biases_m:
-        got = biased_fix_outcomes(bs, geo.ue.pos[window], bias / SPEED_OF_LIGHT, slots,
-                                  cfg.run.success_threshold_m, cfg.receiver.max_residual_m)
-        n = max(len(got), 1)
-        out.append((bias, *(100.0 * got.count(k) / n
-                            for k in ("success", "large_error", "service_failure"))))
-    return out
+from veriloc_rt.studies.fbs_bias import sweep
 
 
 def main(argv=None) -> int:

@@ -39,7 +39,7 @@ def measure(setting: str, points: int, rays: int | None, out: str) -> None:
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.cir import INTERACTION_DIFFRACTION, INTERACTION_DIFFUSE
     from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.world.geometry import build_geometry
 
     materials, diffuse, single = SETTINGS[setting]
     rt_cfg = {"diffuse_reflection": diffuse, "materials": materials}

@@ -74,7 +74,7 @@ def _load(config_path: str | None, points: int | None = None, seed: int | None =
 
 
 def cmd_run(args) -> int:
-    from .engine import run
+    from .sim.engine import run
 
     cfg = _load(args.config, args.points, args.seed)
     out = Path(args.out)
@@ -112,7 +112,7 @@ def cmd_run(args) -> int:
     print(f"time: propagation {t['propagation']:.1f} s, chain {t.get('chain_total', 0):.1f} s, "
           f"adversary {t.get('adversary_total', 0):.1f} s, detectors "
           f"{t.get('detectors_total', 0):.1f} s; total {t['total']:.1f} s")
-    from .receiver.chain import STAGES
+    from .phy.receiver.chain import STAGES
 
     print("chain by stage (s, summed over workers): " + ", ".join(
         f"{k} {t[f'{k}_total']:.1f}" for k in STAGES if f"{k}_total" in t))
@@ -123,7 +123,7 @@ def cmd_run(args) -> int:
 
 
 def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
-    from .montecarlo import run_montecarlo
+    from .sim.montecarlo import run_montecarlo
 
     n = cfg.run.realisations
     where = (f"on the Dask cluster at {args.scheduler}" if args.scheduler is not None
@@ -152,7 +152,7 @@ def _pm(m: dict, group: str, key: str) -> str:
 
 def format_montecarlo(metrics: dict) -> str:
     """Mean ± 95 % CI half-width of the correct-decision rates and outcomes, as text."""
-    from .run_points import DETECTORS, OUTCOMES
+    from .detectors.outcomes import DETECTORS, OUTCOMES
 
     lines = [f"mean ± 95 % confidence half-width over {metrics['realisations']} realisations"]
     lines.append("scenario    " + " ".join(f"{d:>11s}" for d in DETECTORS)
@@ -174,7 +174,7 @@ def _cell(v) -> str:
 
 def format_metrics(metrics: dict) -> str:
     """The run's outcome and correct-decision tables as text."""
-    from .run_points import DETECTORS, OUTCOMES
+    from .detectors.outcomes import DETECTORS, OUTCOMES
 
     sc = metrics["scenarios"]
     lines = ["scenario     " + " ".join(f"{d:>9s}" for d in DETECTORS)
@@ -194,7 +194,7 @@ def format_metrics(metrics: dict) -> str:
 
 def cmd_scene(args) -> int:
     from .report.scene_plot import plot_top_view
-    from .scenario import build_geometry
+    from .world.geometry import build_geometry
 
     cfg = _load(args.config)
     out = Path(args.out)
@@ -209,8 +209,8 @@ def cmd_scene(args) -> int:
 def cmd_keys(args) -> int:
     import tempfile
 
-    from .scenario import build_geometry
-    from .security.keys import generate_keys
+    from .world.geometry import build_geometry
+    from .phy.security.keys import generate_keys
 
     cfg = _load(args.config)
     if args.num_bs is not None:
@@ -228,7 +228,7 @@ def cmd_keys(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import markdown_table, run_bench, write_bench
+    from .studies.bench import markdown_table, run_bench, write_bench
 
     cfg = _load(args.config)
     if args.points is not None and args.points < 2:
@@ -244,7 +244,7 @@ def cmd_bench(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare import format_comparison, run_compare
+    from .studies.compare import format_comparison, run_compare
 
     cfg = _load(args.config, args.points, args.seed)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
@@ -258,7 +258,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from .validate import format_validation, run_validate
+    from .studies.validate import format_validation, run_validate
 
     cfg = _load(args.config, args.points)
     res = run_validate(cfg, args.out, progress=ProgressBar())

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from veriloc_rt.bench import COST_RTOL, PARETO_METRIC
+from veriloc_rt.studies.bench import COST_RTOL, PARETO_METRIC
 from veriloc_rt.cli import main
 
 CONFIG = str(Path(__file__).resolve().parents[2] / "configs" / "ci-tiny.json")

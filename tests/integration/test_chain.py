@@ -11,16 +11,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from veriloc_rt.channel import dbm_to_watt, thermal_noise_variance
-from veriloc_rt.channel_config import ChannelConfig, ReceiverConfig
+from veriloc_rt.phy.channel import dbm_to_watt, thermal_noise_variance
+from veriloc_rt.config.channel import ChannelConfig, ReceiverConfig
 from veriloc_rt.config import ArrayConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
-from veriloc_rt.nr.config import NRConfig
+from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.propagation.cir import CIR, array_response, ula_element_positions
 from veriloc_rt.propagation.uma import uma_cir
-from veriloc_rt.receiver.chain import PositioningChain
-from veriloc_rt.security.config import SecurityConfig
-from veriloc_rt.security.keys import simulated_keys
+from veriloc_rt.phy.receiver.chain import PositioningChain
+from veriloc_rt.config.security import SecurityConfig
+from veriloc_rt.phy.security.keys import simulated_keys
 
 FC = 3.5e9
 BS = np.array([[0.0, 289.0, 25.0], [-250.3, -144.5, 25.0], [250.3, -144.5, 25.0]])
@@ -172,9 +172,9 @@ def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
     grid (frequency) or OFDM-modulated into the IQ (time, OFDM front end), gives the same
     estimates up to the channel's own time/frequency difference (FRONT_END_SAMPLES), here at
     0 dB per RE and antenna where independent noise would move the ToAs by ~0.05 sample."""
-    from veriloc_rt.diagnostics import _shared_noise_chain
+    from veriloc_rt.studies.diagnostics import shared_noise_chain
 
-    cls = _shared_noise_chain()
+    cls = shared_noise_chain()
     ue = np.array([37.0, -21.0, 1.5])
     nv = thermal_noise_variance(rate, ChannelConfig().ue_noise_figure_db)
     probe = make_chain("frequency", rate)

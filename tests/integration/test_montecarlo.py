@@ -14,12 +14,13 @@ import math
 
 import pytest
 
-from veriloc_rt import montecarlo
+from veriloc_rt.sim import executors, montecarlo
 from veriloc_rt.cli import main
 from veriloc_rt.config import config_from_dict
-from veriloc_rt.engine import run
+from veriloc_rt.sim.engine import run
 from veriloc_rt.errors import InputError
-from veriloc_rt.montecarlo import aggregate, local_cluster, mean_ci, realisation_config
+from veriloc_rt.sim.montecarlo import aggregate, mean_ci, realisation_config
+from veriloc_rt.sim.executors import local_cluster
 
 from .test_cli import cli
 
@@ -151,7 +152,7 @@ def test_confidence_interval_by_hand():
 
 @pytest.mark.parametrize("realisations", [1, 2])
 def test_unreachable_scheduler_is_one_line_exit_2(tmp_path, monkeypatch, capsys, realisations):
-    monkeypatch.setattr(montecarlo, "CONNECT_TIMEOUT_S", 1.0)  # the CLI waits 10 s
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT_S", 1.0)  # the CLI waits 10 s
     f = tmp_path / "c.json"
     f.write_text(json.dumps({**SMALL, "run": {"realisations": realisations}}))
     out = tmp_path / "out"

@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 
 from veriloc_rt.config import config_from_dict
-from veriloc_rt.engine import run
+from veriloc_rt.sim.engine import run
 from veriloc_rt.report.results import CSV_COLUMNS
-from veriloc_rt.run_points import DETECTORS, OUTCOMES
-from veriloc_rt.threats import biased_fix_outcomes
+from veriloc_rt.detectors.outcomes import DETECTORS, OUTCOMES
+from veriloc_rt.studies.fbs_bias import biased_fix_outcomes
 
 from .test_cli import ROOT, cli
 
@@ -169,9 +169,10 @@ def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
     (``PositioningChain(estimates=...)``). Second method: the DS chain's own full call, its own
     ToA on its own grid. The two grids share the PRS REs (same noise stream; the tags sit on
     other REs) up to the relay's gain control, which sees the tags: every verdict must agree."""
-    from veriloc_rt.engine import compute_propagation, run_keys
-    from veriloc_rt.run_points import ScenarioRunner
-    from veriloc_rt.scenario import build_geometry
+    from veriloc_rt.sim.engine import compute_propagation
+    from veriloc_rt.sim.run_folder import run_keys
+    from veriloc_rt.sim.runner import ScenarioRunner
+    from veriloc_rt.world.geometry import build_geometry
 
     cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
                             "trajectory": {"num_points": 12}, "seed": 4,
@@ -182,12 +183,12 @@ def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
     seen = []
     for scenario in cfg.run.scenarios:
         for i in range(geo.num_points):
-            runner._benign.clear()
-            std = runner._chain("standard", runner.chains["standard"], scenario, 0, i)
-            runner._benign.clear()
-            reuse = runner._chain("ds", runner.ds_chain, scenario, 0, i, std)
-            runner._benign.clear()
-            own = runner._chain("ds", runner.ds_chain, scenario, 0, i)
+            runner.clear_cache()
+            std = runner.chain_result("standard", runner.chains["standard"], scenario, 0, i)
+            runner.clear_cache()
+            reuse = runner.chain_result("ds", runner.ds_chain, scenario, 0, i, std)
+            runner.clear_cache()
+            own = runner.chain_result("ds", runner.ds_chain, scenario, 0, i)
             np.testing.assert_array_equal(reuse.tags_valid, own.tags_valid)
             np.testing.assert_array_equal(reuse.detected, own.detected)
             seen.extend(own.tags_valid)

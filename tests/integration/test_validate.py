@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from veriloc_rt.cli import main
-from veriloc_rt.validate import MODELS
+from veriloc_rt.studies.validate import MODELS
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = str(ROOT / "configs" / "ci-tiny.json")

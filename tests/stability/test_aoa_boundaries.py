@@ -38,7 +38,7 @@ from scipy.stats import norm
 
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.propagation.cir import array_response, ula_element_positions
-from veriloc_rt.receiver.aoa import AoAEstimator
+from veriloc_rt.phy.receiver.aoa import AoAEstimator
 
 FC = 3.5e9
 LAM = SPEED_OF_LIGHT / FC

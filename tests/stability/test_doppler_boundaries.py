@@ -27,14 +27,14 @@ Boundaries found (seeded):
 import numpy as np
 import pytest
 
-from veriloc_rt.channel import dbm_to_watt, thermal_noise_variance
-from veriloc_rt.channel_config import ChannelConfig, ReceiverConfig
+from veriloc_rt.phy.channel import dbm_to_watt, thermal_noise_variance
+from veriloc_rt.config.channel import ChannelConfig, ReceiverConfig
 from veriloc_rt.config import ArrayConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
-from veriloc_rt.nr.config import NRConfig
+from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.propagation.cir import CIR, array_response, ula_element_positions
-from veriloc_rt.receiver.chain import PositioningChain
-from veriloc_rt.security.config import SecurityConfig
+from veriloc_rt.phy.receiver.chain import PositioningChain
+from veriloc_rt.config.security import SecurityConfig
 
 FC = 3.5e9
 BS = np.array([[0.0, 289.0, 25.0], [-250.3, -144.5, 25.0], [250.3, -144.5, 25.0]])

@@ -31,7 +31,7 @@ from scipy.optimize import brentq
 from scipy.stats import chi2
 
 from veriloc_rt.constants import SPEED_OF_LIGHT
-from veriloc_rt.receiver.multilateration import Multilaterator, gdop
+from veriloc_rt.phy.receiver.multilateration import Multilaterator, gdop
 
 UE_H = 1.5
 #: BS heights; the UE's is known to the solver

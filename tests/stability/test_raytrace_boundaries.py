@@ -26,17 +26,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from veriloc_rt.channel_config import ChannelConfig, ReceiverConfig
+from veriloc_rt.config.channel import ChannelConfig, ReceiverConfig
 from veriloc_rt.config import ArrayConfig, RayTracingConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
-from veriloc_rt.nr.config import NRConfig
-from veriloc_rt.propagation.cir import INTERACTION_DIFFRACTION, INTERACTION_SPECULAR, ula_element_positions
+from veriloc_rt.config.nr import NRConfig
+from veriloc_rt.propagation.cir import (INTERACTION_DIFFRACTION, INTERACTION_SPECULAR,
+                                        ula_element_positions)
 from veriloc_rt.propagation.raytrace import LinkTracer, build_cir, trace_links
-from veriloc_rt.receiver.chain import PositioningChain
-from veriloc_rt.scene.canyon import UrbanCanyon
-from veriloc_rt.scene.export import write_ply
-from veriloc_rt.security.config import SecurityConfig
-from veriloc_rt.security.keys import simulated_keys
+from veriloc_rt.phy.receiver.chain import PositioningChain
+from veriloc_rt.world.scene.canyon import UrbanCanyon
+from veriloc_rt.world.scene.export import write_ply
+from veriloc_rt.config.security import SecurityConfig
+from veriloc_rt.phy.security.keys import simulated_keys
 
 pytestmark = pytest.mark.raytrace
 

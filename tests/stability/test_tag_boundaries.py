@@ -28,13 +28,13 @@ import functools
 import numpy as np
 import pytest
 
-from veriloc_rt.nr.config import NRConfig
-from veriloc_rt.nr.grid import ReLayout
-from veriloc_rt.nr.transmitter import PRSTransmitter
-from veriloc_rt.security.config import SecurityConfig
-from veriloc_rt.security.keys import public_view, simulated_keys
-from veriloc_rt.security.tag_receiver import TagVerifier
-from veriloc_rt.security.tags import TAG_BITS
+from veriloc_rt.config.nr import NRConfig
+from veriloc_rt.phy.nr.grid import ReLayout
+from veriloc_rt.phy.transmitter import PRSTransmitter
+from veriloc_rt.config.security import SecurityConfig
+from veriloc_rt.phy.security.keys import public_view, simulated_keys
+from veriloc_rt.phy.receiver.tag_verifier import TagVerifier
+from veriloc_rt.phy.security.tags import TAG_BITS
 
 BS_IDS = (101, 102, 103)
 #: largest channel delay of the flat channels (as the bench)

@@ -23,7 +23,8 @@ measurements, default config: q = (1 m/s^2)^2, R = (5 m)^2, dt = 1 s). Boundarie
 import numpy as np
 import pytest
 
-from veriloc_rt.detectors.tracking import KalmanTracker, TrackingConfig
+from veriloc_rt.detectors.tracking import KalmanTracker
+from veriloc_rt.config.detectors import TrackingConfig
 
 CFG = TrackingConfig()
 GAMMA = -2.0 * np.log(1.0 - CFG.gate_probability)

@@ -17,7 +17,7 @@ import pytest
 
 from veriloc_rt.config import Config, config_to_dict
 from veriloc_rt.report.results import ResultsWriter
-from veriloc_rt.run_points import DETECTORS, PointRow
+from veriloc_rt.detectors.outcomes import DETECTORS, PointRow
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -116,7 +116,7 @@ def test_link_check_finds_broken_and_outside_links(tmp_path):
 def test_readme_states_the_command_ci_runs():
     # .ci/run executes "the README's test command": its last line must be in the README verbatim
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
-    assert ci == "bash scripts/setup.sh && .venv/bin/python -m pytest -q"
+    assert ci == "bash scripts/setup.sh && .venv/bin/lint-imports && .venv/bin/python -m pytest -q"
     readme = (ROOT / "README.md").read_text()
     assert ci in readme
     assert "bash scripts/setup.sh && .venv/bin/veriloc-rt run --out results" in readme

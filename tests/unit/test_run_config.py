@@ -5,7 +5,7 @@ import json
 import pytest
 
 from veriloc_rt.config import Config, config_from_dict, config_schema, load_config
-from veriloc_rt.configtools import to_dict
+from veriloc_rt.config.fields import to_dict
 from veriloc_rt.errors import InputError
 
 

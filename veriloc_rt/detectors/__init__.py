@@ -4,11 +4,14 @@ Each is a small stage configured once by a frozen config and called per trajecto
 the stateful one (:class:`KalmanTracker`) has ``reset()``.
 """
 
-from .absa import ABSAConfig, ABSADetector, ABSAVerdict, angle_difference, geometric_azimuth, wrap_angle
-from .handshake import HandshakeConfig, HandshakeDetector, HandshakeVerdict
-from .tags import TagDetector, TagDetectorConfig, TagVerdict
-from .tracking import (KalmanTracker, TrackingConfig, TrackVerdict, cv_transition,
-                       dwna_process_noise, nis_gate)
+from ..config.detectors import ABSAConfig
+from .absa import ABSADetector, ABSAVerdict, angle_difference, geometric_azimuth, wrap_angle
+from ..config.detectors import HandshakeConfig
+from .handshake import HandshakeDetector, HandshakeVerdict
+from .tags import TagDetector, TagVerdict
+from ..config.detectors import TagDetectorConfig
+from .tracking import KalmanTracker, TrackVerdict, cv_transition, dwna_process_noise, nis_gate
+from ..config.detectors import TrackingConfig
 
 __all__ = ["ABSAConfig", "ABSADetector", "ABSAVerdict", "angle_difference", "geometric_azimuth",
            "wrap_angle", "HandshakeConfig", "HandshakeDetector", "HandshakeVerdict", "TagDetector",

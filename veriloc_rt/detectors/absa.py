@@ -23,7 +23,7 @@ Missing data:
 * a point where no BS could be checked gets ``unchecked_verdict`` (default invalid, fail-safe).
 
 The ULA's mirror ambiguity (az and 2 alpha - az give the same spatial frequency) must be resolved
-before this stage (:func:`veriloc_rt.receiver.aoa.resolve_ambiguity` against the same reference).
+before this stage (:func:`veriloc_rt.phy.receiver.aoa.resolve_ambiguity` against the same reference).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..configtools import param
+from ..config.detectors import ABSAConfig
 
 #: the threshold is inclusive; wrapping an exact threshold difference can cost a few ulp
 _ROUNDOFF_RAD = 1e-12
@@ -63,21 +63,6 @@ def geometric_azimuth(bs_pos, ue_pos):
     b = np.atleast_2d(np.asarray(bs_pos, dtype=np.float64))
     u = np.asarray(ue_pos, dtype=np.float64).reshape(-1)
     return np.arctan2(b[:, 1] - u[1], b[:, 0] - u[0])
-
-
-@dataclass(frozen=True)
-class ABSAConfig:
-    """ABSA: angular tolerance and where the reference azimuth comes from."""
-
-    threshold_deg: float = param(20.0, "largest accepted |AoA - reference| (paper: 20 deg)",
-                                 lo=0.0, hi=180.0)
-    reference: str = param("geometry", "reference azimuth: from the last validated position "
-                           "('geometry'), a supplied per-BS azimuth ('scene'), or the supplied "
-                           "one where finite else geometry ('scene_or_geometry')",
-                           choices=("geometry", "scene", "scene_or_geometry"))
-    missing_estimate: str = param("invalid", "a BS without an AoA estimate makes the point "
-                                  "'invalid' or is 'ignore'd", choices=("invalid", "ignore"))
-    unchecked_verdict: bool = param(False, "verdict of a point where no BS could be checked")
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,20 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..configtools import param
+from ..config.detectors import HandshakeConfig
 
 __all__ = ["HandshakeConfig", "HandshakeDetector", "HandshakeVerdict"]
-
-
-@dataclass(frozen=True)
-class HandshakeConfig:
-    """DL-UL handshake: largest accepted distance between the DL and UL fixes."""
-
-    threshold_m: float = param(20.0, "largest accepted |p_DL - p_UL| (paper: 20 m)", lo=0.0,
-                               hi=100_000.0)
-    ul_failure: str = param("invalid", "verdict when the UL fix is missing",
-                            choices=("invalid", "valid"))
-    horizontal: bool = param(True, "compare (x, y) only; false: 3-D distance")
 
 
 @dataclass(frozen=True)

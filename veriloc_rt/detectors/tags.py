@@ -1,6 +1,6 @@
 """HMAC and digital-signature (DS) tag detectors: per-BS tag verdicts -> one point verdict.
 
-The tag receiver (:class:`veriloc_rt.security.tag_receiver.TagVerifier`) checks each serving BS's
+The tag receiver (:class:`veriloc_rt.phy.receiver.tag_verifier.TagVerifier`) checks each serving BS's
 tag in each received slot. This stage turns those checks into the point's verdict (paper Sec.
 "Authentication Schemes Embedded in Empty PRS REs"); the same rule serves HMAC and DS, the
 config names which scheme the verdict belongs to.
@@ -28,23 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..configtools import param
+from ..config.detectors import TagDetectorConfig
 
 __all__ = ["TagDetectorConfig", "TagDetector", "TagVerdict"]
-
-
-@dataclass(frozen=True)
-class TagDetectorConfig:
-    """HMAC / DS tag detector: how per-slot, per-BS tag checks make a point verdict."""
-
-    scheme: str = param("hmac", "which tag the verdicts come from (label only)",
-                        choices=("hmac", "ds"))
-    min_valid_fraction: float = param(0.5, "fraction of a BS's checked slots whose tag must "
-                                      "verify for the BS to count as verified", lo=0.0,
-                                      lo_open=True, hi=1.0)
-    undetected: str = param("invalid", "an undetected serving BS makes the point 'invalid', or "
-                            "is 'ignore'd", choices=("invalid", "ignore"))
-    min_verified_bs: int = param(1, "fewest verified BSs for a valid point", lo=0, hi=64)
 
 
 @dataclass(frozen=True, eq=False)

@@ -70,8 +70,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..configtools import param
-from ..errors import bad_value
+from ..config.detectors import TrackingConfig
 
 __all__ = ["TrackingConfig", "TrackVerdict", "KalmanTracker", "cv_transition", "dwna_process_noise",
            "nis_gate"]
@@ -81,31 +80,6 @@ log = logging.getLogger(__name__)
 MODE_INIT = "init"
 MODE_TRACKING = "tracking"
 MODE_RECOVERY = "recovery"
-
-
-@dataclass(frozen=True)
-class TrackingConfig:
-    """Kalman position tracking detector (paper Sec. "Position Tracking")."""
-
-    dt_s: float = param(1.0, "time between epochs (overridable per call)", lo=0.0, lo_open=True,
-                        hi=3600.0)
-    accel_std_mps2: float = param(1.0, "std of the DWNA piecewise-constant acceleration "
-                                  "(process noise)", lo=0.0, lo_open=True, hi=100.0)
-    meas_std_m: float = param(5.0, "std of each position coordinate of a fix (R = std^2 I)",
-                              lo=0.0, lo_open=True, hi=10_000.0)
-    init_velocity_std_mps: float = param(10.0, "velocity std at track initialisation",
-                                         lo=0.0, lo_open=True, hi=1000.0)
-    gate_probability: float = param(0.85, "chi-square(2) probability of the NIS gate "
-                                    "(0.85 -> 3.7942)", lo=0.5, hi=0.999999)
-    accept_m: int = param(2, "M: gate passes needed in the recovery window", lo=1, hi=100)
-    window_n: int = param(2, "N: recovery window length in epochs", lo=1, hi=100)
-
-    def validate(self, path: str = "tracking") -> None:
-        if self.accept_m > self.window_n:
-            raise bad_value(f"{path}.accept_m", self.accept_m, f"<= window_n ({self.window_n})")
-
-    def __post_init__(self) -> None:
-        self.validate()
 
 
 def nis_gate(probability: float, dof: int = 2) -> float:

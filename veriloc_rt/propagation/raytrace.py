@@ -42,9 +42,9 @@ from typing import Callable
 import numpy as np
 
 from ..config import PropagationConfig, RayTracingConfig
-from ..configtools import to_dict
+from ..config.fields import to_dict
 from ..constants import SPEED_OF_LIGHT
-from ..scene.export import scene_digest
+from ..world.scene.export import scene_digest
 from .cir import ADVERSARY_TX, CIR, INTERACTION_NONE, NO_TX, array_response, doppler_shift, ula_element_positions
 from .sionna_rt import RawPaths, sampled_diffraction
 

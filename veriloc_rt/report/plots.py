@@ -17,7 +17,7 @@ import numpy as np
 
 from veriloc_rt.errors import InputError, bad_value
 
-from ..run_points import DETECTORS, OUTCOMES
+from ..detectors.outcomes import DETECTORS, OUTCOMES
 from .results import CSV_COLUMNS
 
 log = logging.getLogger(__name__)
@@ -37,7 +37,7 @@ _OUTCOME_COLOURS = {"success": (0.0, 0.6, 0.0), "large_error": (1.0, 0.3, 0.3),
 
 
 @contextmanager
-def _figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), ncols: int = 1, **kw):
+def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), ncols: int = 1, **kw):
     """Yield ``(fig, axes)`` on the Agg backend; on a clean exit add ``title``, save, log.
 
     The figure is closed in every case. ``kw`` goes to ``plt.subplots``.
@@ -86,6 +86,39 @@ def _value(d: dict, key: str) -> float:
     return float("nan") if v is None else float(v)
 
 
+def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> Path:
+    """Grouped bars of the mean correct-decision rate per scenario and detector, with the
+    ``ci95`` intervals as error bars, drawn clipped to 0..100 % (a rate cannot leave it; the
+    t-interval of few realisations can); none below two realisations."""
+    sc = metrics["scenarios"]
+    names = [s for s in sc if sc[s].get("correct_decision_rate")]
+    width = 0.16
+    path = Path(path)
+    with figure(path, title, figsize=(9.0, 4.5)) as (_, ax):
+        x = np.arange(len(names), dtype=float)
+        for k, det in enumerate(DETECTORS):
+            xs = x + (k - (len(DETECTORS) - 1) / 2.0) * width
+            mean = np.array([_num(sc[s]["correct_decision_rate"].get(det)) for s in names])
+            half = np.nan_to_num([_num(sc[s]["ci95"].get("correct_decision_rate", {}).get(det))
+                                  for s in names])
+            v = np.nan_to_num(mean)
+            err = np.array([np.minimum(half, v), np.minimum(half, 100.0 - v)])  # [2, scenarios]
+            label, colour = _DETECTOR_STYLE[det]
+            ax.bar(xs, v, width, color=colour, label=label, yerr=err, capsize=2.0,
+                   error_kw={"lw": 0.8})
+            for xi, m, top in zip(xs, mean, v + err[1]):
+                ax.text(xi, top + 1.0, "n/a" if np.isnan(m) else f"{m:.1f}", rotation=90,
+                        ha="center", va="bottom", fontsize=6)
+        ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s in names])
+        ax.set_xlim(-0.6, max(len(names), 1) - 0.4)
+        _percent_axis(ax, 118.0, "Correct decision rate [%]", bool(names), ncols=5)
+    return path
+
+
+def _num(v) -> float:
+    return float("nan") if v is None else float(v)
+
+
 def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
                   threshold_m: float = 15.0) -> Path:
     """Stacked outcome bars per scenario: standard PRS group, then encrypted PRS group.
@@ -103,7 +136,7 @@ def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
               "large_error": f"Large error / spoofing (> {threshold_m:g} m)",
               "service_failure": "Service failure"}
     path = Path(path)
-    with _figure(path, title, figsize=(8.0, 5.0)) as (_, ax):
+    with figure(path, title, figsize=(8.0, 5.0)) as (_, ax):
         ticks, ticklabels, start = [], [], 0.0
         for gi, (name, entries) in enumerate(groups):
             x = start + np.arange(len(entries), dtype=float)
@@ -140,7 +173,7 @@ def plot_detection_rates(metrics: dict, path: str | Path, title: str | None = No
                         f"not {type(reference).__name__}")
     width = 0.16
     path = Path(path)
-    with _figure(path, title, figsize=(9.0, 4.5)) as (_, ax):
+    with figure(path, title, figsize=(9.0, 4.5)) as (_, ax):
         x = np.arange(len(entries), dtype=float)
         offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
         xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
@@ -202,7 +235,7 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
     x = idx.astype(float) + 1.0
     err = np.maximum(err.astype(float), 1e-2)  # log axis: a zero error sits at 1 cm
     path = Path(path)
-    with _figure(path, title, nrows=6, figsize=(10.0, 9.0), sharex=True,
+    with figure(path, title, nrows=6, figsize=(10.0, 9.0), sharex=True,
                  height_ratios=[1] * 5 + [1.6]) as (_, axes):
         for ax, det, y in zip(axes, DETECTORS, dets):
             label, colour = _DETECTOR_STYLE[det]
@@ -259,7 +292,7 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     has_fix = np.isfinite(est).all(axis=1)
     inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
     path = Path(path)
-    with _figure(path, title, figsize=(8.0, 8.0)) as (_, ax):
+    with figure(path, title, figsize=(8.0, 8.0)) as (_, ax):
         ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
         for o in OUTCOMES[:2]:
             sel = outcome == o
@@ -325,7 +358,7 @@ def plot_pareto(rows: list[dict], path: str | Path, y_axis: dict[str, tuple[str,
                 title: str | None = None) -> None:
     """Time against accuracy of a fidelity sweep (``veriloc-rt bench``), one panel per group.
 
-    :param rows: bench rows (``veriloc_rt.bench``): group, label, role, time_s, time_unit,
+    :param rows: bench rows (``veriloc_rt.studies.bench``): group, label, role, time_s, time_unit,
         pareto and each group's accuracy metric
     :param y_axis: per group, (the row key of its accuracy metric, the axis label). x:
         seconds per link or point (log); y: that deviation from the reference (log, with the
@@ -336,7 +369,7 @@ def plot_pareto(rows: list[dict], path: str | Path, y_axis: dict[str, tuple[str,
     groups = [g for g in ("raytrace", "waveform") if any(r["group"] == g for r in rows)]
     if not groups:
         raise ValueError("Argument `rows` holds no bench settings")
-    with _figure(path, title, ncols=len(groups), figsize=(6.5 * len(groups), 5.0),
+    with figure(path, title, ncols=len(groups), figsize=(6.5 * len(groups), 5.0),
                  squeeze=False) as (fig, axes):
         for ax, g in zip(axes[0], groups):
             grp = [r for r in rows if r["group"] == g]
@@ -402,7 +435,7 @@ def _cdf(ax, x, label: str, **kw) -> None:
 def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = None) -> None:
     """CDFs of the benign chain's errors per propagation model (``veriloc-rt compare``).
 
-    :param benign: {model: :class:`veriloc_rt.diagnostics.BenignRun`}
+    :param benign: {model: :class:`veriloc_rt.studies.diagnostics.BenignRun`}
     """
     panels = (("position_error_m", "DL position error, m"),
               ("toa_bias_m", "ToA bias against the straight-line delay, m"),
@@ -410,7 +443,7 @@ def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = Non
               ("aoa_error_deg", "AoA error against the BS direction, deg"))
     colours = {"raytrace": "tab:blue", "uma": "tab:orange"}
     names = {"raytrace": "ray tracing", "uma": "TR 38.901 UMa"}
-    with _figure(path, title or "benign errors: ray tracing vs UMa", nrows=2, ncols=2,
+    with figure(path, title or "benign errors: ray tracing vs UMa", nrows=2, ncols=2,
                  figsize=(11.0, 8.0)) as (fig, axes):
         for ax, (attr, label) in zip(axes.ravel(), panels):
             for model, b in benign.items():
@@ -437,7 +470,7 @@ def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | No
     if not scen:
         raise ValueError("Argument `detectors` holds no evaluated scenario")
     hatches = {"raytrace": "", "uma": "//"}
-    with _figure(path, title or "correct decisions: ray tracing (plain) vs UMa (hatched)",
+    with figure(path, title or "correct decisions: ray tracing (plain) vs UMa (hatched)",
                  ncols=len(scen), figsize=(3.2 * len(scen) + 1.0, 4.2), squeeze=False) as (fig, axes):
         for ax, s in zip(axes[0], scen):
             x = np.arange(len(DETECTORS))

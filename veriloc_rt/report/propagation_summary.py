@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..constants import SPEED_OF_LIGHT
+
 from ..propagation.cir import CIR, INTERACTION_DIFFRACTION, INTERACTION_NONE
 
 
@@ -42,8 +44,8 @@ def summarize(cir: CIR) -> dict:
         "paths_per_link_mean": float(paths.mean()),
         "delay_spread_ns_p50": float(np.nanpercentile(ds, 50) * 1e9),
         "delay_spread_ns_p95": float(np.nanpercentile(ds, 95) * 1e9),
-        "first_path_excess_m_p50": float(np.percentile(excess, 50) * 299_792_458.0),
-        "first_path_excess_m_p95": float(np.percentile(excess, 95) * 299_792_458.0),
+        "first_path_excess_m_p50": float(np.percentile(excess, 50) * SPEED_OF_LIGHT),
+        "first_path_excess_m_p95": float(np.percentile(excess, 95) * SPEED_OF_LIGHT),
         "diffraction_path_share_pct": 100.0 * float(
             (cir.valid & np.any(cir.interactions == INTERACTION_DIFFRACTION, -1)
              & only_diffracted)[has].sum() / max(paths.sum(), 1)),

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..run_points import DETECTORS, OUTCOMES, PointRow
+from ..detectors.outcomes import DETECTORS, OUTCOMES, PointRow
 
 __all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "scenario_metrics", "results_path"]
 

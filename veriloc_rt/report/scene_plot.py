@@ -9,7 +9,7 @@ import numpy as np
 
 def plot_top_view(geometry, path: str | Path, title: str | None = None,
                   estimated_xy: np.ndarray | None = None) -> Path:
-    """Write a PNG top view of ``geometry`` (a :class:`~veriloc_rt.scenario.Geometry`).
+    """Write a PNG top view of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
 
     Emitted buildings are dark, buildings of the full grid that the crop left out are light,
     streets are white. Serving BSs are triangles (labelled with their id), the UE path is a

@@ -6,22 +6,26 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots import _figure
+from ..propagation.pathloss_models import VALIDITY, RooftopGeometry
+from .plots import figure
 
 _STYLE = {"free_space": "0.35", "p1411": "tab:red", "cost231_wi": "tab:orange",
           "uma_nlos": "tab:green", "umi_nlos": "tab:purple"}
 
 
-def plot_validation_pathloss(res, path: str | Path, title: str | None = None) -> None:
+def plot_validation_pathloss(res, path: str | Path, models: dict, model_db,
+                             title: str | None = None) -> None:
     """Scatter of the traced links (NLoS dots, LoS triangles), per-bin traced medians with
     p10-p90 bars, and each model's curve at the scene's geometry (median phi and covered
     fraction of the links); a curve is dashed where an input other than the distance lies
     outside the model's stated range, dotted outside its distance range. Log-distance axis.
 
-    :param res: a :class:`veriloc_rt.validate.ValidationResult`
+    :param res: a :class:`veriloc_rt.studies.validate.ValidationResult`
+    :param models: ``{name: (label, source)}`` of the models drawn
+        (:data:`veriloc_rt.studies.validate.MODELS`)
+    :param model_db: ``model_db(name, d_2d, phi, covered, fc, geo)``, a model's path loss, dB
+        (:func:`veriloc_rt.studies.validate.model_db`)
     """
-    from ..propagation.pathloss_models import VALIDITY, RooftopGeometry
-    from ..validate import MODELS, model_db
 
     inp, lk = res.inputs, res.links
     geo = RooftopGeometry(inp["h_bs_m"], inp["h_ue_m"], inp["h_roof_m"], inp["street_width_m"],
@@ -32,7 +36,7 @@ def plot_validation_pathloss(res, path: str | Path, title: str | None = None) ->
     hi = max(1.2 * float(d.max()), 2.0 * lo) if d.size else 1000.0
     grid = np.geomspace(lo, hi, 300)
     phi = np.full_like(grid, np.radians(inp["phi_deg_median"]))
-    with _figure(path, title or f"path loss: ray tracing vs models (f = {fc / 1e9:g} GHz, "
+    with figure(path, title or f"path loss: ray tracing vs models (f = {fc / 1e9:g} GHz, "
                  f"median phi {inp['phi_deg_median']:.0f} deg)", figsize=(9.0, 6.0)) as (fig, ax):
         nl = has & ~los
         ax.scatter(d[nl], lk["pl_db"][nl], s=10, color="0.6", alpha=0.7,
@@ -40,7 +44,7 @@ def plot_validation_pathloss(res, path: str | Path, title: str | None = None) ->
         if np.any(has & los):
             ax.scatter(d[has & los], lk["pl_db"][has & los], s=18, marker="^", color="tab:blue",
                        alpha=0.8, label=f"traced LoS links (n={int((has & los).sum())})")
-        for name, (label, _src) in MODELS.items():
+        for name, (label, _src) in models.items():
             y = model_db(name, grid, phi, inp["covered_fraction_median"] * grid, fc, geo)
             dlo, dhi = VALIDITY[name].get("d_m", (0.0, np.inf))
             inside = (grid >= dlo) & (grid <= dhi)

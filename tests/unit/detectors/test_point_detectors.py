@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from veriloc_rt.configtools import from_dict
-from veriloc_rt.detectors import (ABSAConfig, ABSADetector, HandshakeConfig, HandshakeDetector,
-                                  TagDetector, TagDetectorConfig, angle_difference,
+from veriloc_rt.config.fields import from_dict
+from veriloc_rt.config.detectors import ABSAConfig, HandshakeConfig, TagDetectorConfig
+from veriloc_rt.detectors import (ABSADetector, HandshakeDetector, TagDetector, angle_difference,
                                   geometric_azimuth, wrap_angle)
 from veriloc_rt.errors import InputError
 

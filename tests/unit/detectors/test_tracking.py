@@ -11,10 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from veriloc_rt.detectors.tracking import (KalmanTracker, TrackingConfig, cv_transition,
-                                           dwna_process_noise, nis_gate)
+from veriloc_rt.detectors.tracking import (KalmanTracker, cv_transition, dwna_process_noise,
+                                           nis_gate)
+from veriloc_rt.config.detectors import TrackingConfig
 from veriloc_rt.errors import InputError
-from veriloc_rt.configtools import from_dict
+from veriloc_rt.config.fields import from_dict
 
 #: chi-square(2) 85 % point, 4 decimals in the reference table
 GATE_085 = 3.7942

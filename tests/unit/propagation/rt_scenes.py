@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from veriloc_rt.scene.canyon import UrbanCanyon
-from veriloc_rt.scene.export import write_ply
+from veriloc_rt.world.scene.canyon import UrbanCanyon
+from veriloc_rt.world.scene.export import write_ply
 
 #: slab thickness making ITU materials behave as half-spaces: 2 m of concrete or ground
 #: attenuates the internally reflected wave by > 35 dB (alpha ~ 10-14 Np/m at 3.5 GHz)

@@ -5,7 +5,7 @@ import numpy as np
 from veriloc_rt.config import config_from_dict
 from veriloc_rt.propagation.cir import ADVERSARY_TX, NO_TX
 from veriloc_rt.propagation.stochastic import uma_propagation
-from veriloc_rt.scenario import build_geometry
+from veriloc_rt.world.geometry import build_geometry
 
 
 def test_uma_links_mirror_the_traced_structure(tmp_path):

@@ -7,7 +7,7 @@ from veriloc_rt.config import config_from_dict
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.propagation.cir import ADVERSARY_TX, NO_TX, doppler_shift
 from veriloc_rt.propagation.raytrace import plan_calls, trace
-from veriloc_rt.scenario import build_geometry
+from veriloc_rt.world.geometry import build_geometry
 
 from .rt_scenes import ground, write_test_scene
 
@@ -153,8 +153,8 @@ def test_no_path_anywhere_gives_a_usable_cir(tmp_path):
     """With every interaction switched off but LoS, in a canyon whose BSs are all hidden, no
     link has a path: the CIR keeps one invalid path slot per link (was: zero slots, and the
     chain failed on an empty minimum) and the chain reports a service failure."""
-    from veriloc_rt.engine import run_keys
-    from veriloc_rt.diagnostics import benign_chain
+    from veriloc_rt.sim.run_folder import run_keys
+    from veriloc_rt.studies.diagnostics import benign_chain
 
     cfg = config_from_dict(dict(TINY, trajectory={"num_points": 3, "region_m": 70.0},
                                 propagation={"raytrace": {"rays_per_source": 1000, "max_depth": 1,

@@ -1,0 +1,15 @@
+"""Layer 5, attacks: what the adversary transmits, on top of the physical layer.
+
+The three threats as stages on arrays (:mod:`.fbs` false-BS selective spoofing, :mod:`.meaconing`
+relay, :mod:`.jamming` wideband noise) and :mod:`.adversary`, which turns the configured one into
+the signal a positioning chain receives at a trajectory point.
+"""
+
+from .fbs import (FalseBaseStation, FBSPlan, fbs_delays, fbs_delays_absolute, spoofer_replicas,
+                  target_position)
+from .jamming import Jammer, jamming_grid, jamming_iq, prs_band_hz
+from .meaconing import Meaconer, fractional_delay, meacon
+
+__all__ = ["FalseBaseStation", "FBSPlan", "fbs_delays", "fbs_delays_absolute",
+           "spoofer_replicas", "target_position", "Jammer", "jamming_grid",
+           "jamming_iq", "prs_band_hz", "Meaconer", "fractional_delay", "meacon"]

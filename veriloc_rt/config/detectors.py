@@ -1,0 +1,93 @@
+"""Detector sections of the config: the five detectors' thresholds and rules (paper Sec. V)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import bad_value
+from .fields import param, section
+
+__all__ = ["ABSAConfig", "HandshakeConfig", "TagDetectorConfig", "TrackingConfig"]
+
+
+@dataclass(frozen=True)
+class TagDetectorConfig:
+    """HMAC / DS tag detector: how per-slot, per-BS tag checks make a point verdict."""
+
+    scheme: str = param("hmac", "which tag the verdicts come from (label only)",
+                        choices=("hmac", "ds"))
+    min_valid_fraction: float = param(0.5, "fraction of a BS's checked slots whose tag must "
+                                      "verify for the BS to count as verified", lo=0.0,
+                                      lo_open=True, hi=1.0)
+    undetected: str = param("invalid", "an undetected serving BS makes the point 'invalid', or "
+                            "is 'ignore'd", choices=("invalid", "ignore"))
+    min_verified_bs: int = param(1, "fewest verified BSs for a valid point", lo=0, hi=64)
+
+
+@dataclass(frozen=True)
+class ABSAConfig:
+    """ABSA: angular tolerance and where the reference azimuth comes from."""
+
+    threshold_deg: float = param(20.0, "largest accepted |AoA - reference| (paper: 20 deg)",
+                                 lo=0.0, hi=180.0)
+    reference: str = param("geometry", "reference azimuth: from the last validated position "
+                           "('geometry'), a supplied per-BS azimuth ('scene'), or the supplied "
+                           "one where finite else geometry ('scene_or_geometry')",
+                           choices=("geometry", "scene", "scene_or_geometry"))
+    missing_estimate: str = param("invalid", "a BS without an AoA estimate makes the point "
+                                  "'invalid' or is 'ignore'd", choices=("invalid", "ignore"))
+    unchecked_verdict: bool = param(False, "verdict of a point where no BS could be checked")
+
+
+@dataclass(frozen=True)
+class HandshakeConfig:
+    """DL-UL handshake: largest accepted distance between the DL and UL fixes."""
+
+    threshold_m: float = param(20.0, "largest accepted |p_DL - p_UL| (paper: 20 m)", lo=0.0,
+                               hi=100_000.0)
+    ul_failure: str = param("invalid", "verdict when the UL fix is missing",
+                            choices=("invalid", "valid"))
+    horizontal: bool = param(True, "compare (x, y) only; false: 3-D distance")
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Kalman position tracking detector (paper Sec. "Position Tracking")."""
+
+    dt_s: float = param(1.0, "time between epochs (overridable per call)", lo=0.0, lo_open=True,
+                        hi=3600.0)
+    accel_std_mps2: float = param(1.0, "std of the DWNA piecewise-constant acceleration "
+                                  "(process noise)", lo=0.0, lo_open=True, hi=100.0)
+    meas_std_m: float = param(5.0, "std of each position coordinate of a fix (R = std^2 I)",
+                              lo=0.0, lo_open=True, hi=10_000.0)
+    init_velocity_std_mps: float = param(10.0, "velocity std at track initialisation",
+                                         lo=0.0, lo_open=True, hi=1000.0)
+    gate_probability: float = param(0.85, "chi-square(2) probability of the NIS gate "
+                                    "(0.85 -> 3.7942)", lo=0.5, hi=0.999999)
+    accept_m: int = param(2, "M: gate passes needed in the recovery window", lo=1, hi=100)
+    window_n: int = param(2, "N: recovery window length in epochs", lo=1, hi=100)
+
+    def validate(self, path: str = "tracking") -> None:
+        if self.accept_m > self.window_n:
+            raise bad_value(f"{path}.accept_m", self.accept_m, f"<= window_n ({self.window_n})")
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+@dataclass(frozen=True)
+class DetectorsConfig:
+    """The five per-point detectors (paper Sec. "Proposed Detection and Resilience Techniques")."""
+
+    hmac: TagDetectorConfig = section(TagDetectorConfig, "HMAC tag detector")
+    digsig: TagDetectorConfig = section(lambda: TagDetectorConfig(scheme="ds"),
+                                        "digital-signature (Ed25519) tag detector")
+    absa: ABSAConfig = section(ABSAConfig, "angular-based source authentication")
+    handshake: HandshakeConfig = section(HandshakeConfig, "DL-UL handshake")
+    tracking: TrackingConfig = section(TrackingConfig, "Kalman position tracking")
+
+    def validate(self, path: str = "detectors") -> None:
+        if self.hmac.scheme != "hmac":
+            raise bad_value(f"{path}.hmac.scheme", self.hmac.scheme, "'hmac'")
+        if self.digsig.scheme != "ds":
+            raise bad_value(f"{path}.digsig.scheme", self.digsig.scheme, "'ds'")
+

@@ -1,0 +1,178 @@
+"""Generic machinery for frozen, nested config dataclasses.
+
+A config section is a ``@dataclass(frozen=True)`` whose fields carry their constraints in
+``metadata`` (built with :func:`param`). :func:`from_dict` builds a section from plain JSON data,
+rejecting unknown keys and wrong types or values with an :class:`~veriloc_rt.errors.InputError`
+that names the dotted field path; :func:`to_dict` and :func:`json_schema` go the other way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from typing import Any
+
+from ..errors import InputError, bad_value
+
+
+def param(default: Any, doc: str, *, lo: float | None = None, hi: float | None = None,
+          choices: tuple | None = None, lo_open: bool = False) -> Any:
+    """A config field with its default, description and allowed range or choices.
+
+    :param lo: smallest allowed value (inclusive unless ``lo_open``)
+    :param hi: largest allowed value (inclusive)
+    :param choices: the allowed values, for enumerations
+    """
+    meta = {"doc": doc, "lo": lo, "hi": hi, "choices": choices, "lo_open": lo_open}
+    if isinstance(default, (list, dict)):
+        raise TypeError("mutable defaults are not allowed in frozen configs")
+    return dataclasses.field(default=default, metadata=meta)
+
+
+def section(cls_default: type, doc: str) -> Any:
+    """A nested config section with default construction."""
+    return dataclasses.field(default_factory=cls_default, metadata={"doc": doc})
+
+
+def _type_name(tp: Any) -> str:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join(_type_name(a) for a in typing.get_args(tp))
+    if origin is tuple:
+        return "list of " + _type_name(typing.get_args(tp)[0])
+    if tp is type(None):
+        return "null"
+    return {int: "integer", float: "number", bool: "boolean", str: "string"}.get(tp, str(tp))
+
+
+def _coerce(tp: Any, value: Any, path: str) -> Any:
+    """Check ``value`` against annotation ``tp`` and convert JSON forms (list -> tuple)."""
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        for arg in typing.get_args(tp):
+            try:
+                return _coerce(arg, value, path)
+            except InputError:
+                continue
+        raise bad_value(path, value, _type_name(tp))
+    if origin is tuple:
+        (item_tp, *_rest) = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)):
+            raise bad_value(path, value, _type_name(tp))
+        return tuple(_coerce(item_tp, v, f"{path}[{i}]") for i, v in enumerate(value))
+    if tp is type(None):
+        if value is None:
+            return None
+        raise bad_value(path, value, "null")
+    if tp is bool:
+        if isinstance(value, bool):
+            return value
+        raise bad_value(path, value, "true or false")
+    if tp is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
+            return int(value)
+        raise bad_value(path, value, "an integer")
+    if tp is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if not math.isfinite(value):
+                raise bad_value(path, value, "a finite number")
+            return float(value)
+        raise bad_value(path, value, "a number")
+    if tp is str:
+        if isinstance(value, str):
+            return value
+        raise bad_value(path, value, "a string")
+    if dataclasses.is_dataclass(tp):
+        return from_dict(tp, value, path)
+    raise TypeError(f"unsupported config annotation {tp!r} at {path}")
+
+
+def _check_constraints(f: dataclasses.Field, value: Any, path: str) -> None:
+    meta = f.metadata
+    choices = meta.get("choices")
+    if choices is not None and value not in choices:
+        raise bad_value(path, value, "one of " + ", ".join(repr(c) for c in choices))
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if lo is not None and (value < lo or (meta.get("lo_open") and value == lo)):
+            rng = f"{'>' if meta.get('lo_open') else '>='} {lo}" + (f" and <= {hi}" if hi is not None else "")
+            raise bad_value(path, value, f"a value {rng}")
+        if hi is not None and value > hi:
+            raise bad_value(path, value, f"a value <= {hi}" + (f" and >= {lo}" if lo is not None else ""))
+
+
+def from_dict(cls: type, data: Any, path: str = "") -> Any:
+    """Build config section ``cls`` from JSON ``data``; unknown keys are errors.
+
+    :raises InputError: naming the dotted field path, the value and what is allowed
+    """
+    where = path or "config"
+    if not isinstance(data, dict):
+        raise bad_value(where, data, "an object")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - set(fields))
+    if unknown:
+        name = f"{path}.{unknown[0]}" if path else unknown[0]
+        raise InputError(name, f"unknown key; allowed keys here: {', '.join(sorted(fields))}")
+    kwargs = {}
+    for name, value in data.items():
+        fpath = f"{path}.{name}" if path else name
+        coerced = _coerce(hints[name], value, fpath)
+        _check_constraints(fields[name], coerced, fpath)
+        kwargs[name] = coerced
+    obj = cls(**kwargs)
+    check = getattr(obj, "validate", None)
+    if check is not None:
+        check(path)
+    return obj
+
+
+def to_dict(obj: Any) -> Any:
+    """Plain JSON-ready form of a config section (tuples become lists)."""
+    if dataclasses.is_dataclass(obj):
+        return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, tuple):
+        return [to_dict(v) for v in obj]
+    return obj
+
+
+def _schema_of(tp: Any) -> dict:
+    origin = typing.get_origin(tp)
+    if origin in (typing.Union, types.UnionType):
+        return {"anyOf": [_schema_of(a) for a in typing.get_args(tp)]}
+    if origin is tuple:
+        return {"type": "array", "items": _schema_of(typing.get_args(tp)[0])}
+    if dataclasses.is_dataclass(tp):
+        return json_schema(tp)
+    return {"type": {int: "integer", float: "number", bool: "boolean", str: "string",
+                     type(None): "null"}[tp]}
+
+
+def json_schema(cls: type) -> dict:
+    """JSON schema (draft 2020-12 subset) of a config section."""
+    hints = typing.get_type_hints(cls)
+    props = {}
+    for f in dataclasses.fields(cls):
+        s = _schema_of(hints[f.name])
+        meta = f.metadata
+        if meta.get("doc"):
+            s["description"] = meta["doc"]
+        if meta.get("choices") is not None:
+            s["enum"] = list(meta["choices"])
+        if meta.get("lo") is not None:
+            s["exclusiveMinimum" if meta.get("lo_open") else "minimum"] = meta["lo"]
+        if meta.get("hi") is not None:
+            s["maximum"] = meta["hi"]
+        if f.default is not dataclasses.MISSING:
+            s["default"] = to_dict(f.default)
+        props[f.name] = s
+    doc = (cls.__doc__ or "").strip().splitlines()
+    out = {"type": "object", "properties": props, "additionalProperties": False}
+    if doc:
+        out["description"] = doc[0]
+    return out

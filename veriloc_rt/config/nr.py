@@ -1,0 +1,115 @@
+"""Config section of the NR waveform: numerology, bandwidth, PRS comb, per-BS offsets, sampling.
+
+Per-BS tuples (``prs_ids``, ``comb_offsets``) are indexed by the BS's position in the serving set
+(0 is the reference BS); their common length is the number of simultaneously transmitting BSs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .fields import param
+from ..errors import InputError, bad_value
+
+#: OFDM symbols per slot, normal cyclic prefix (TS 38.211 4.3.2)
+SYMBOLS_PER_SLOT = 14
+#: Allowed comb sizes K_comb and numbers of PRS symbols L_PRS (TS 38.211 7.4.1.7.3, 38.331)
+COMB_SIZES = (2, 4, 6, 12)
+NUM_SYMBOLS = (2, 4, 6, 12)
+
+#: Sub-carrier spacing at numerology 0 [Hz] (TS 38.211 4.2: 15 kHz * 2^mu)
+SCS_MU0_HZ = 15e3
+#: Largest supported sample rate [Hz]: the paper's 122.88 MHz is the reference
+MAX_SAMPLE_RATE_HZ = 245.76e6
+
+
+@dataclass(frozen=True)
+class NRConfig:
+    """5G NR DL PRS waveform (TS 38.211 7.4.1.7) and its OFDM sampling."""
+
+    numerology: int = param(0, "subcarrier spacing 15 kHz * 2^mu", choices=(0, 1))
+    num_prb: int = param(52, "bandwidth in PRBs (52 PRB = 10 MHz at mu = 0); PRS spans them all, "
+                         "from point A", lo=24, hi=272)
+    comb: int = param(6, "PRS comb size K_comb", choices=COMB_SIZES)
+    num_symbols: int = param(12, "PRS symbols per slot L_PRS", choices=NUM_SYMBOLS)
+    start_symbol: int = param(0, "first PRS symbol l_start in the slot", lo=0, hi=12)
+    slots_per_frame: int = param(10, "slots per frame that carry PRS (slot 0 onwards); a frame "
+                                 "has 10 * 2^mu slots", lo=1, hi=20)
+    prs_ids: tuple[int, ...] = param((0, 1, 2), "dl-PRS-SequenceId (0..4095) per serving BS")
+    comb_offsets: tuple[int, ...] = param((0, 1, 2), "PRS comb offset k_offset per serving BS; "
+                                          "with tags, BS i's tag uses k_offset + K_comb/2")
+    sample_rate_hz: float | None = param(None, "OFDM sample rate; null: the smallest power-of-two "
+                                         "FFT rate holding the band (15.36 MHz for 52 PRB at mu=0); "
+                                         "122.88 MHz is the reference", lo=0.0, lo_open=True,
+                                         hi=MAX_SAMPLE_RATE_HZ)
+
+    @property
+    def num_bs(self) -> int:
+        return len(self.comb_offsets)
+
+    @property
+    def num_subcarriers(self) -> int:
+        return 12 * self.num_prb
+
+    @property
+    def subcarrier_spacing_hz(self) -> float:
+        return SCS_MU0_HZ * 2**self.numerology
+
+    @property
+    def min_fft_size(self) -> int:
+        """Smallest power-of-two FFT holding the band (at least 128)."""
+        n = 128
+        while n < self.num_subcarriers:
+            n *= 2
+        return n
+
+    @property
+    def fft_size(self) -> int:
+        if self.sample_rate_hz is None:
+            return self.min_fft_size
+        return int(round(self.sample_rate_hz / self.subcarrier_spacing_hz))
+
+    @property
+    def resolved_sample_rate_hz(self) -> float:
+        return self.fft_size * self.subcarrier_spacing_hz
+
+    @property
+    def prs_symbols(self) -> range:
+        return range(self.start_symbol, self.start_symbol + self.num_symbols)
+
+    def validate(self, path: str = "nr") -> None:
+        """Cross-field checks; raise :class:`InputError` naming the field."""
+        if self.num_prb % 4:
+            raise bad_value(f"{path}.num_prb", self.num_prb, "a multiple of 4 (TS 38.211 PRS NumRB)")
+        if self.num_symbols < self.comb or self.num_symbols % self.comb:
+            raise bad_value(f"{path}.num_symbols", self.num_symbols,
+                            f"a multiple of comb {self.comb} (TS 38.211 7.4.1.7.3)")
+        if self.start_symbol + self.num_symbols > SYMBOLS_PER_SLOT:
+            raise bad_value(f"{path}.start_symbol", self.start_symbol,
+                            f"<= {SYMBOLS_PER_SLOT - self.num_symbols} for {self.num_symbols} symbols")
+        if self.slots_per_frame > 10 * 2**self.numerology:
+            raise bad_value(f"{path}.slots_per_frame", self.slots_per_frame,
+                            f"<= {10 * 2**self.numerology} at numerology {self.numerology}")
+        if not self.comb_offsets:
+            raise bad_value(f"{path}.comb_offsets", self.comb_offsets, "at least one BS")
+        if len(self.prs_ids) != self.num_bs:
+            raise bad_value(f"{path}.prs_ids", self.prs_ids, f"{self.num_bs} ids, one per comb offset")
+        for i, n_id in enumerate(self.prs_ids):
+            if not 0 <= n_id <= 4095:
+                raise bad_value(f"{path}.prs_ids[{i}]", n_id, "0..4095")
+        for i, off in enumerate(self.comb_offsets):
+            if not 0 <= off < self.comb:
+                raise bad_value(f"{path}.comb_offsets[{i}]", off, f"0..{self.comb - 1}")
+        if len(set(self.comb_offsets)) != self.num_bs:
+            raise bad_value(f"{path}.comb_offsets", self.comb_offsets, "distinct offsets")
+        if self.sample_rate_hz is not None:
+            ratio = self.sample_rate_hz / self.subcarrier_spacing_hz
+            n = int(round(ratio))
+            if abs(ratio - n) > 1e-9 * ratio or n & (n - 1) or n < self.min_fft_size:
+                raise InputError(f"{path}.sample_rate_hz",
+                                 f"got {self.sample_rate_hz!r}, expected subcarrier spacing times a "
+                                 f"power of two >= {self.min_fft_size} (e.g. "
+                                 f"{self.min_fft_size * self.subcarrier_spacing_hz:.6g} ... 122.88e6)")
+
+    def __post_init__(self) -> None:
+        self.validate()

@@ -1,0 +1,48 @@
+"""What a point comes to: the detectors' verdicts and the positioning outcome.
+
+The names of the five detectors (the CSV's columns, in the paper's order), the three outcomes and
+the rule that maps a fix to one (paper Fig. "encrypted_PRS"), and :class:`PointRow`, one
+trajectory point of one scenario as the run writes it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DETECTORS", "OUTCOMES", "PointRow", "outcome_of"]
+
+#: the detectors, in the paper's (and the CSV's) column order
+DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
+#: what a point comes to, from :func:`outcome_of`
+OUTCOMES = ("success", "large_error", "service_failure")
+
+
+@dataclass
+class PointRow:
+    """One trajectory point of one scenario (a CSV row).
+
+    time_s : float, s; verdicts : {detector: bool} (True valid); attack : bool
+    true_xy, est_xy : [2] float64, m (est NaN without a fix); error_m : float (NaN without a fix)
+    outcome : str; the ``*_enc`` fields: the same for encrypted PRS (None when not evaluated)
+    """
+
+    index: int
+    time_s: float
+    attack: bool
+    verdicts: dict
+    true_xy: np.ndarray
+    est_xy: np.ndarray
+    error_m: float
+    outcome: str
+    est_xy_enc: np.ndarray | None = None
+    error_m_enc: float | None = None
+    outcome_enc: str | None = None
+
+
+def outcome_of(fix_ok: bool, error_m: float, threshold_m: float) -> str:
+    """'success', 'large_error' or 'service_failure' (paper Fig. "encrypted_PRS")."""
+    if not fix_ok:
+        return "service_failure"
+    return "success" if error_m <= threshold_m else "large_error"

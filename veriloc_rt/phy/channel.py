@@ -1,0 +1,342 @@
+"""Applying CIRs to transmitted waveforms: power control, Doppler, thermal noise.
+
+Every link (a serving BS, the adversary, or the UE on the uplink) is a set of paths with an
+absolute delay ``tau_p``, a baseband complex gain per receive antenna ``g_ap`` (carrier phase
+included, :meth:`CIR.baseband_gains`) and a Doppler ``f_D,p``. What reaches antenna ``a`` is
+
+    y_a(t) = sum_links sqrt(P_link) sum_p g_ap exp(j 2 pi f_D,p t) x_link(t - tau_p) + n_a(t)
+
+with ``t`` absolute time and every transmitter starting its frame at t = 0 (a synchronised
+network). The receiver's buffer starts at the *timing reference* ``t0`` (its sync point, a guard
+before the earliest serving arrival). Two implementations:
+
+* :func:`apply_time`: IQ at any sample rate; each path delayed exactly by a phase ramp in the
+  frequency domain over the whole (zero-padded) frame, then rotated by its Doppler sample by
+  sample. The reference.
+* :func:`apply_frequency`: per resource element, ``Y[l, k] = H[l, k] X[l, k]`` with
+  ``H[l, k] = sum_p g_p exp(-j 2 pi f_k (tau_p - t0)) exp(j 2 pi f_D,p t_l)``, ``f_k`` the baseband
+  frequency of subcarrier k and ``t_l`` the centre of symbol l's FFT window. Exact when every
+  ``tau_p - t0`` lies in [0, CP] and Doppler << SCS (no ISI, no ICI); it ignores both otherwise.
+
+Power convention: a grid with unit-energy REs on all ``num_subcarriers`` is transmitted at power
+P when scaled by ``sqrt(P N_fft / N_sc)`` (the OFDM transform is unitary), so P is the total power
+of a fully loaded carrier and the energy per RE is P / (N_sc SCS). Noise is kT F over the sampled
+band: variance ``k T F f_s`` per sample, which is also the variance per RE. The SNR per RE,
+``P |H|^2 / (k T F N_sc SCS)``, is therefore the same at every sample rate.
+(``ChannelConfig.noise_bandwidth_hz`` scales the density down: :func:`receiver_noise_variance`.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft as sfft
+
+from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
+from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
+from .nr.ofdm import OFDM
+from ..propagation.cir import CIR, array_response
+
+__all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupancy_groups",
+           "apply_frequency", "apply_time",
+           "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
+
+
+def thermal_noise_variance(sample_rate_hz: float, noise_figure_db: float) -> float:
+    """k T0 F f_s: noise power over the sampled band = variance per sample and per RE, W."""
+    return float(BOLTZMANN * REFERENCE_TEMPERATURE * 10.0 ** (noise_figure_db / 10.0) * sample_rate_hz)
+
+
+def receiver_noise_variance(channel: ChannelConfig, sample_rate_hz: float, noise_figure_db: float) -> float:
+    """Variance per sample and per RE of a receiver's noise under ``channel``'s noise settings, W:
+    0 without noise; :func:`thermal_noise_variance`, scaled by ``noise_bandwidth_hz / 122.88 MHz``
+    when that convention is set."""
+    if not channel.noise:
+        return 0.0
+    scale = 1.0 if channel.noise_bandwidth_hz is None else channel.noise_bandwidth_hz / REFERENCE_SAMPLE_RATE_HZ
+    return thermal_noise_variance(sample_rate_hz, noise_figure_db) * scale
+
+
+@dataclass(frozen=True, eq=False)
+class Links:
+    """Paths of a set of links to one receiver.
+
+    delays : [num_links, num_paths] float64, s, absolute (0 on invalid paths)
+    gains : [num_links, num_ant, num_paths] complex128, baseband (carrier phase included), 0 on
+        invalid paths
+    doppler : [num_links, num_paths] float64, Hz
+    valid : [num_links, num_paths] bool
+    """
+
+    delays: np.ndarray
+    gains: np.ndarray
+    doppler: np.ndarray
+    valid: np.ndarray
+
+    def __post_init__(self) -> None:
+        n_l, n_p = self.delays.shape
+        if self.gains.shape[0] != n_l or self.gains.shape[2] != n_p:
+            raise ValueError(f"Links.gains has shape {self.gains.shape}, expected [{n_l}, A, {n_p}]")
+        if self.doppler.shape != (n_l, n_p) or self.valid.shape != (n_l, n_p):
+            raise ValueError("Links.doppler and Links.valid must match Links.delays")
+
+    @property
+    def num_links(self) -> int:
+        return self.delays.shape[0]
+
+    @property
+    def num_ant(self) -> int:
+        return self.gains.shape[1]
+
+    @classmethod
+    def from_cir(cls, cir: CIR, point: int, slots=None) -> "Links":
+        """Links of trajectory point ``point`` (all link slots, or those in ``slots``)."""
+        sl = slice(None) if slots is None else np.asarray(slots)
+        valid = cir.valid[point, sl] & (cir.tx_index[point, sl] != -1)[..., None]
+        delays = cir.delays[point, sl]
+        gains = cir.gains[point, sl] * np.exp(-2j * np.pi * cir.carrier_frequency * delays)[:, None, :]
+        return cls(np.where(valid, cir.delays[point, sl], 0.0), np.where(valid[:, None], gains, 0.0),
+                   np.where(valid, cir.doppler[point, sl], 0.0), valid)
+
+    @classmethod
+    def uplink_from_cir(cls, cir: CIR, point: int, element_pos: np.ndarray) -> list["Links"]:
+        """Reciprocal uplinks of point ``point``: one single-antenna link per link slot.
+
+        The UE transmits from one antenna at the array centre: its gain is the element gain with
+        the element's plane-wave phase removed, ``g_e conj(a_e)``, averaged over elements.
+        """
+        down = cls.from_cir(cir, point)
+        wavelength = SPEED_OF_LIGHT / cir.carrier_frequency
+        a = array_response(cir.aoa_az[point], cir.aoa_zen[point], element_pos, wavelength)
+        centre = np.mean(down.gains * np.conj(a), axis=1)                   # [links, paths]
+        centre = np.where(down.valid, centre, 0.0)
+        return [cls(down.delays[j:j + 1], centre[j:j + 1, None, :], down.doppler[j:j + 1],
+                    down.valid[j:j + 1]) for j in range(down.num_links)]
+
+    def power_gain(self) -> np.ndarray:
+        """Sum over paths of |g|^2, averaged over antennas: [num_links] float64, linear."""
+        return np.sum(np.mean(np.abs(self.gains) ** 2, axis=1), axis=-1)
+
+    def first_delay(self) -> np.ndarray:
+        """Earliest valid delay per link (NaN without paths): [num_links] float64, s."""
+        d = np.where(self.valid, self.delays, np.inf).min(axis=-1)
+        return np.where(np.isfinite(d), d, np.nan)
+
+
+def timing_reference(links: Links, guard_s: float) -> float:
+    """The receiver's sync point t0: ``guard_s`` before the earliest valid arrival, s (0 if none)."""
+    first = links.first_delay()
+    return float(np.nanmin(first) - guard_s) if np.any(np.isfinite(first)) else 0.0
+
+
+def equal_arrival_powers(power_gain: np.ndarray, max_power_w: float, enabled: bool = True) -> np.ndarray:
+    """Idealised power control: every link arrives as strong as the weakest at full power.
+
+    :param power_gain: [num_links] float64, linear channel power gains (0: no path)
+    :returns: [num_links] float64, W; links without a path get the maximum
+    """
+    g = np.asarray(power_gain, dtype=float)
+    p = np.full(g.shape, float(max_power_w))
+    ok = g > 0
+    if enabled and np.any(ok):
+        p[ok] = max_power_w * g[ok].min() / g[ok]
+    return p
+
+
+def re_amplitude(power_w, ofdm: OFDM) -> np.ndarray:
+    """Scale of a unit-RE grid transmitted at ``power_w``: sqrt(P N_fft / N_sc)."""
+    return np.sqrt(np.asarray(power_w, dtype=float) * ofdm.fft_size / ofdm.num_subcarriers)
+
+
+def occupied_power_factor(mode: str, num_subcarriers: int, comb: int, with_tag: bool) -> float:
+    """Factor on a PRS transmitter's power per RE: 1 for ``mode`` 'carrier'; for 'occupied' its
+    power is spread over the REs it sends per PRS symbol (``num_subcarriers / comb`` PRS REs,
+    twice that ``with_tag``) instead of the carrier's ``num_subcarriers``."""
+    if mode == "carrier":
+        return 1.0
+    if mode != "occupied":
+        raise ValueError(f"Argument `mode` must be 'carrier' or 'occupied', not {mode!r}")
+    if not 1 <= comb <= num_subcarriers:
+        raise ValueError(f"Argument `comb` must be in [1, {num_subcarriers}], not {comb}")
+    return num_subcarriers / (num_subcarriers // comb * (2 if with_tag else 1))
+
+
+_LAYOUTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def symbol_layout(ofdm: OFDM, slots) -> tuple[np.ndarray, np.ndarray]:
+    """CP start and CP length of every symbol (cached per numerology, FFT size and slots).
+
+    :returns: starts, cps : [num_slots, 14] int64, samples
+    """
+    key = (ofdm.numerology, ofdm.fft_size, tuple(int(s) for s in slots))
+    if key not in _LAYOUTS:
+        if len(_LAYOUTS) > 64:
+            _LAYOUTS.clear()
+        starts = ofdm.symbol_starts(slots)
+        cps = np.stack([ofdm.cp_lengths(int(s)) for s in slots])
+        starts.flags.writeable = False
+        cps.flags.writeable = False
+        _LAYOUTS[key] = (starts, cps)
+    return _LAYOUTS[key]
+
+
+def symbol_times(ofdm: OFDM, slots, t0: float) -> np.ndarray:
+    """Centre of each symbol's FFT window in a buffer starting at t0 (absolute time).
+
+    :returns: t : [num_slots, 14] float64, s
+    """
+    starts, cps = symbol_layout(ofdm, slots)
+    return t0 + (starts + cps + (ofdm.fft_size - 1) / 2.0) / ofdm.sample_rate_hz
+
+
+def subcarrier_frequencies(ofdm: OFDM) -> np.ndarray:
+    """f_k = (k - N_sc/2) SCS: [num_subcarriers] float64, Hz (subcarrier k at FFT bin k - N_sc/2)."""
+    return (np.arange(ofdm.num_subcarriers) - ofdm.num_subcarriers // 2) * ofdm.subcarrier_spacing_hz
+
+
+def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: float) -> np.ndarray:
+    """H[link, a, t, k] = sum_p g_ap exp(-j 2 pi f_k (tau_p - t0)) exp(j 2 pi f_D,p t).
+
+    :param freqs: [K] float64, Hz; times: [T] float64, s (absolute)
+    :returns: [num_links, num_ant, T, K] complex128
+    """
+    rel = np.where(links.valid, links.delays - t0, 0.0)
+    e_f = np.exp(-2j * np.pi * rel[:, :, None] * freqs[None, None, :])          # [L, P, K]
+    e_t = np.exp(2j * np.pi * links.doppler[:, :, None] * times[None, None, :])  # [L, P, T]
+    gd = links.gains[:, :, None, :] * np.swapaxes(e_t, 1, 2)[:, None]           # [L, A, T, P]
+    return gd @ e_f[:, None]                                                     # [L, A, T, K]
+
+
+def occupancy_groups(occ: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """Rows of a boolean matrix grouped by their pattern (the symbols of a grid by the
+    subcarriers they occupy, the blocks of a replica by their bins).
+
+    :param occ: [R, C] bool
+    :returns: list of (row indices, column indices of the True entries), rows without one left
+        out; None when every entry is True
+    """
+    if occ.all():
+        return None
+    used = np.flatnonzero(occ.any(axis=1))
+    if used.size == 0:
+        return []
+    packed = np.ascontiguousarray(np.packbits(occ[used], axis=1))
+    rows = packed.view(np.dtype((np.void, packed.shape[1])))[:, 0]
+    _, first, inv = np.unique(rows, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    return [(used[inv == g], np.flatnonzero(occ[used[i]])) for g, i in enumerate(first)]
+
+
+def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofdm: OFDM, slots,
+                    t0: float) -> np.ndarray:
+    """Received resource grid, noiseless: sum over links of a_l H_l X_l.
+
+    H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
+    with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
+    H_l X_l = 0.
+
+    :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
+    :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
+    :returns: [num_ant, num_slots, 14, num_subcarriers] complex128
+    """
+    grids = np.asarray(grids)
+    if grids.shape[0] != links.num_links:
+        raise ValueError(f"Argument `grids` has {grids.shape[0]} links, `links` {links.num_links}")
+    t = symbol_times(ofdm, slots, t0)
+    f = subcarrier_frequencies(ofdm)
+    k_n = ofdm.num_subcarriers
+    out = np.zeros((links.num_ant, t.size, k_n), dtype=np.complex128)
+    flat_t = t.ravel()
+    for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
+        x = grids[li].reshape(t.size, k_n)
+        one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
+                    links.valid[li:li + 1])
+        occ = x != 0   # a dense grid (a jammer's noise) gains nothing from groups
+        groups = occupancy_groups(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
+        if groups is None:
+            out += amp * frequency_response(one, f, flat_t, t0)[0] * x[None]
+            continue
+        for sym, sc in groups:
+            h = frequency_response(one, f[sc], flat_t[sym], t0)[0]               # [A, Tg, Kg]
+            ix = (sym[:, None], sc[None, :])
+            out[:, ix[0], ix[1]] += amp * h * x[ix][None]
+    return out.reshape(links.num_ant, *t.shape, k_n)
+
+
+def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,
+               t0: float, num_out: int, decimation: int = 1) -> np.ndarray:
+    """Received IQ, noiseless: exact fractional delays (FFT phase ramp) and per-sample Doppler.
+
+    Sample n of the output is absolute time t0 + n / f_s. Each input waveform starts at t = 0
+    and is zero outside its samples (the FFT is zero-padded so nothing wraps into the output).
+    Cost: one full-length inverse FFT per path.
+
+    With ``decimation`` D > 1 the waveforms are ideally low-passed to |f| < f_s / (2 D), the paths
+    are applied at f_s / D and the sum is interpolated back to f_s (spectrum zero-padding). Delay
+    and Doppler (<< f_s / D) keep a band-limited signal band-limited, so this is exact for the
+    waveform's content inside f_s / (2 D) and drops only what lies outside (the CP-OFDM
+    out-of-band leakage, which a transmit filter removes anyway); D times cheaper per path.
+
+    :param waveforms: [num_links, num_in] complex, baseband at ``sample_rate_hz``
+    :param amplitudes: [num_links] float64
+    :param decimation: int >= 1, D
+    :returns: [num_ant, num_out] complex128
+    """
+    x = np.asarray(waveforms)
+    if x.ndim != 2 or x.shape[0] != links.num_links:
+        raise ValueError(f"Argument `waveforms` must be [{links.num_links}, num_in], not {x.shape}")
+    if not isinstance(decimation, (int, np.integer)) or decimation < 1:
+        raise ValueError(f"Argument `decimation` must be an int >= 1, not {decimation!r}")
+    fs = float(sample_rate_hz)
+    rel = np.where(links.valid, links.delays - t0, 0.0)
+    lead = int(np.ceil(max(0.0, -rel.min()) * fs)) + 64
+    span = int(np.ceil(max(0.0, rel.max()) * fs)) + 64
+    need = max(x.shape[1] + span, num_out) + lead + 64
+    n_low = sfft.next_fast_len(-(-need // decimation))
+    n_low += n_low % 2
+    nfft = n_low * decimation
+    keep = np.concatenate([np.arange(n_low // 2), np.arange(nfft - n_low // 2, nfft)])
+    f = sfft.fftfreq(nfft, 1.0 / fs)[keep]
+    fs_low = fs / decimation
+    n_keep = n_low if decimation > 1 else min(num_out, n_low)
+    t = t0 + np.arange(n_keep) / fs_low
+    low = np.zeros((links.num_ant, n_low), dtype=np.complex128)
+    for li in range(links.num_links):
+        if not np.any(links.valid[li]) or amplitudes[li] == 0:
+            continue
+        spec = sfft.fft(x[li], nfft)[keep] / decimation
+        for p in np.flatnonzero(links.valid[li]):
+            d = sfft.ifft(spec * np.exp(-2j * np.pi * f * rel[li, p]))[:n_keep]
+            if links.doppler[li, p] != 0.0:
+                d = d * np.exp(2j * np.pi * links.doppler[li, p] * t)
+            low[:, :n_keep] += (amplitudes[li] * links.gains[li, :, p])[:, None] * d[None, :]
+    if decimation == 1:
+        out = low
+    else:  # band-limited interpolation back to fs
+        spec = np.zeros((links.num_ant, nfft), dtype=np.complex128)
+        spec[:, keep] = sfft.fft(low, axis=-1) * decimation
+        out = sfft.ifft(spec, axis=-1)
+    out = out[:, :num_out]
+    return out if out.shape[1] == num_out else np.pad(out, ((0, 0), (0, num_out - out.shape[1])))
+
+
+def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator, major_axis: int = 0) -> np.ndarray:
+    """x + circular complex Gaussian noise of the given variance (a new array).
+
+    :param major_axis: the axis the draws run along outermost: the noise of the leading entries
+        of that axis does not depend on its length (a received grid [A, S, 14, K] with axis 1:
+        the first slots' noise is the same whether the grid has them alone or every slot)
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
+    if variance <= 0:
+        return np.array(x, dtype=np.complex128)
+    shape = (x.shape[major_axis],) + tuple(np.delete(x.shape, major_axis))
+    n = rng.standard_normal(shape + (2,)).view(np.complex128)[..., 0]
+    n = np.moveaxis(n, 0, major_axis)
+    n *= np.sqrt(variance / 2.0)
+    n += x
+    return n

@@ -1,0 +1,314 @@
+"""OTDOA multilateration: RSTDs to a 2-D position with known heights, and GDOP.
+
+The UE at (x, y, h_UE) with known h_UE and BSs at known 3-D positions b_i measure
+``rstd_s[i] = toa_i - toa_ref``, i.e. c rstd_i = d_i - d_ref with d_i = |p - b_i| (3-D).
+The solver
+
+1. initialises with a closed form (Chan/Fang: the range-difference equations are linear in
+   (x, y, d_ref); with known heights the vertical offsets enter as constants, and the constraint
+   d_ref^2 = |p - b_ref|^2 gives a quadratic in d_ref) and with the best node of a coarse grid;
+2. refines every start with Levenberg-Marquardt (``scipy.optimize.least_squares``) on the
+   whitened residuals (RSTD covariance sigma^2 (I + 1 1^T) for iid ToA noise), keeping the
+   lowest cost;
+3. checks convergence, distance from the network, and the residual: the rms range residual must
+   stay below ``max_residual_m``, and with ``sigma_m`` given the whitened SSR must pass a
+   chi-square(N - 3) test (RAIM-style; with 3 BSs there is no redundancy and only hyperbolas
+   that do not intersect at all are caught).
+
+A failure is a *service failure* (DoS): the result says so with a reason; no NaN, no exception
+for bad geometry or inconsistent measurements. Bad arguments (shapes, types) raise ValueError.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import chi2
+
+from ...constants import SPEED_OF_LIGHT
+
+#: Result status values
+STATUS_OK = "ok"
+STATUS_TOO_FEW = "too_few_bs"
+STATUS_NO_CONVERGENCE = "no_convergence"
+STATUS_DIVERGED = "diverged"
+STATUS_RESIDUAL = "residual_check_failed"
+
+
+@dataclass(frozen=True, eq=False)
+class MultilaterationResult:
+    """Outcome of one position fix.
+
+    position : [3] float64, m; the fix (x, y, ue_height) when ``ok``; otherwise the best finite
+        iterate or the BS centroid, never NaN. Use it only when ``ok``.
+    ok : bool; status : str (``STATUS_*``); reason : str (empty when ok)
+    residual_rms_m : float, m, rms of c rstd - (d_i - d_ref) at the fix
+    chi2 : float, whitened SSR / sigma^2 (NaN-free: 0 when sigma unknown); dof : int, N - 3
+    num_bs : int, BSs used (reference included); gdop : float (inf for singular geometry)
+    nfev : int, residual evaluations of the best refinement
+    starts : list of [2] float64, m, the initial points tried (closed form roots, grid node)
+    alternatives : list of [3] float64, m, other fixes that fit equally well (the two-intersection
+        ambiguity of 3 BSs with the UE outside their hull); ``position`` is the one nearest the
+        BS centroid. Non-empty means ``ambiguous``.
+    """
+
+    position: np.ndarray
+    ok: bool
+    status: str
+    reason: str = ""
+    residual_rms_m: float = 0.0
+    chi2: float = 0.0
+    dof: int = 0
+    num_bs: int = 0
+    gdop: float = float("inf")
+    nfev: int = 0
+    starts: list = field(default_factory=list)
+    alternatives: list = field(default_factory=list)
+
+    @property
+    def ambiguous(self) -> bool:
+        return bool(self.alternatives)
+
+    @property
+    def service_failure(self) -> bool:
+        return not self.ok
+
+
+def gdop(bs_pos, ue_pos, ref_index: int = 0) -> float:
+    """Horizontal GDOP of TDOA positioning with known UE height.
+
+    H rows are (u_i - u_ref)[:2], u_i the unit vector BS i -> UE (3-D if the positions are 3-D);
+    the RSTD covariance for iid ToA noise sigma is sigma^2 (I + 1 1^T); P = (H^T R^-1 H)^-1 and
+    GDOP = sqrt(tr P). Equal to the TOA-with-clock-bias form.
+
+    :param bs_pos: [num_bs, 2 or 3] float64, m; ue_pos: [2 or 3] float64, m
+    :returns: float, dimensionless (inf when H is rank deficient or num_bs < 3)
+    """
+    b = np.asarray(bs_pos, dtype=float)
+    u = np.asarray(ue_pos, dtype=float)
+    if b.ndim != 2 or b.shape[1] not in (2, 3) or u.shape != (b.shape[1],):
+        raise ValueError(f"Arguments `bs_pos`, `ue_pos` must be [N, 2|3] and [2|3], not "
+                         f"{b.shape}, {u.shape}")
+    if not 0 <= ref_index < b.shape[0]:
+        raise ValueError(f"Argument `ref_index` must be in [0, {b.shape[0]}), not {ref_index}")
+    if b.shape[0] < 3:
+        return float("inf")
+    d = u - b
+    unit = d / np.linalg.norm(d, axis=1, keepdims=True)
+    others = [i for i in range(b.shape[0]) if i != ref_index]
+    h = (unit[others] - unit[ref_index])[:, :2]
+    m = len(others)
+    r_inv = np.eye(m) - np.ones((m, m)) / (m + 1.0)          # (I + 1 1^T)^-1
+    info = h.T @ r_inv @ h
+    if np.linalg.cond(info) > 1e12:
+        return float("inf")
+    return float(np.sqrt(np.trace(np.linalg.inv(info))))
+
+
+def _bs_line(bs_pos: np.ndarray, tol_m: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | None:
+    """(point, unit direction) of the line through the BSs' horizontal positions when they
+    are collinear within ``tol_m``, else None."""
+    s = bs_pos[:, :2]
+    c = s.mean(axis=0)
+    _, sv, vt = np.linalg.svd(s - c)
+    if sv[0] <= tol_m or (sv.size > 1 and sv[1] > tol_m):
+        return None
+    return c, vt[0]
+
+
+def chan_initialisation(bs_pos: np.ndarray, range_diff_m: np.ndarray, ref_index: int,
+                        ue_height_m: float) -> list[np.ndarray]:
+    """Closed-form candidates (x, y) from range differences, known heights (Chan / Fang).
+
+    :param bs_pos: [num_bs, 3] float64, m; range_diff_m: [num_bs] float64, m (d_i - d_ref;
+        the reference entry is ignored)
+    :returns: list of [2] float64 candidates (empty if the geometry is degenerate or no
+        positive real root exists)
+    """
+    others = [i for i in range(bs_pos.shape[0]) if i != ref_index]
+    s = bs_pos[:, :2]
+    dz = bs_pos[:, 2] - ue_height_m
+    k = np.sum(s**2, axis=1) + dz**2
+    r = range_diff_m[others]
+    a = -2.0 * (s[others] - s[ref_index])
+    b = r**2 - k[others] + k[ref_index]
+    if np.linalg.matrix_rank(a) < 2:
+        return []
+    pinv = np.linalg.pinv(a)
+    p = pinv @ b                    # x = p + q d_ref
+    q = pinv @ (2.0 * r)
+    e = p - s[ref_index]
+    coef = [q @ q - 1.0, 2.0 * (q @ e), e @ e + dz[ref_index] ** 2]
+    roots = np.roots(coef) if abs(coef[0]) > 1e-12 else np.array([-coef[2] / coef[1]])
+    out = [p + q * rt.real for rt in roots if abs(rt.imag) < 1e-6 * max(1.0, abs(rt)) and rt.real > 0]
+    return [c for c in out if np.all(np.isfinite(c))]
+
+
+class Multilaterator:
+    """RSTD multilateration solver, configured once and called per measurement set.
+
+    :param ue_height_m: float, m, known UE antenna height
+    :param max_residual_m: float, m, largest accepted rms range residual
+    :param sigma_m: optional float, m, ToA (range) noise std; enables the chi-square test
+    :param false_alarm: float, chi-square test size
+    :param max_distance_m: float, m, fixes farther than this from the BS centroid are divergence
+    :param max_nfev: int, LM evaluation cap per start
+    :param grid_points: int, grid nodes per axis for the coarse initialisation
+    """
+
+    def __init__(self, ue_height_m: float = 1.5, max_residual_m: float = 10.0,
+                 sigma_m: float | None = None, false_alarm: float = 1e-3,
+                 max_distance_m: float = 10_000.0, max_nfev: int = 200, grid_points: int = 41):
+        for name, val in (("max_residual_m", max_residual_m), ("max_distance_m", max_distance_m)):
+            if not np.isfinite(val) or val <= 0:
+                raise ValueError(f"Argument `{name}` must be finite and > 0, not {val!r}")
+        if sigma_m is not None and (not np.isfinite(sigma_m) or sigma_m <= 0):
+            raise ValueError(f"Argument `sigma_m` must be None or > 0, not {sigma_m!r}")
+        if not 0 < false_alarm < 1:
+            raise ValueError(f"Argument `false_alarm` must be in (0, 1), not {false_alarm!r}")
+        self.ue_height_m = float(ue_height_m)
+        self.max_residual_m = float(max_residual_m)
+        self.sigma_m = sigma_m
+        self.false_alarm = float(false_alarm)
+        self.max_distance_m = float(max_distance_m)
+        self.max_nfev = int(max_nfev)
+        self.grid_points = int(grid_points)
+
+    def __call__(self, bs_pos, rstd_s, ref_index: int = 0, valid=None) -> MultilaterationResult:
+        """Position fix from RSTDs.
+
+        :param bs_pos: [num_bs, 3] float64, m
+        :param rstd_s: [num_bs] float64, s, toa_i - toa_ref (reference entry ignored); non-finite
+            entries count as not detected
+        :param ref_index: int, index of the reference BS
+        :param valid: optional [num_bs] bool, BSs detected
+        """
+        bs = np.asarray(bs_pos, dtype=float)
+        rstd = np.asarray(rstd_s, dtype=float)
+        if bs.ndim != 2 or bs.shape[1] != 3 or not np.all(np.isfinite(bs)):
+            raise ValueError(f"Argument `bs_pos` must be a finite [num_bs, 3] array, not {bs.shape}")
+        if rstd.shape != (bs.shape[0],):
+            raise ValueError(f"Argument `rstd_s` must have shape ({bs.shape[0]},), not {rstd.shape}")
+        if not isinstance(ref_index, (int, np.integer)) or not 0 <= ref_index < bs.shape[0]:
+            raise ValueError(f"Argument `ref_index` must be an index into bs_pos, not {ref_index!r}")
+        use = np.isfinite(rstd)
+        use[ref_index] = True
+        if valid is not None:
+            v = np.asarray(valid, dtype=bool)
+            if v.shape != use.shape:
+                raise ValueError(f"Argument `valid` must have shape {use.shape}, not {v.shape}")
+            use &= v
+        centroid = np.append(bs[:, :2].mean(axis=0), self.ue_height_m)
+        if valid is not None and not use[ref_index]:
+            return MultilaterationResult(centroid, False, STATUS_TOO_FEW,
+                                         "reference BS not detected", num_bs=int(use.sum()))
+        n = int(use.sum())
+        if n < 3:
+            return MultilaterationResult(centroid, False, STATUS_TOO_FEW,
+                                         f"{n} BSs detected, 3 needed for a 2-D fix", num_bs=n)
+        idx = np.flatnonzero(use)
+        ref = int(np.flatnonzero(idx == ref_index)[0])
+        return self._solve(bs[idx], SPEED_OF_LIGHT * np.where(np.isfinite(rstd), rstd, 0.0)[idx], ref)
+
+    # -- internals ---------------------------------------------------------------------------
+    def _solve(self, bs: np.ndarray, rd: np.ndarray, ref: int) -> MultilaterationResult:
+        n = bs.shape[0]
+        others = np.array([i for i in range(n) if i != ref])
+        m = n - 1
+        # whitening of the RSTD covariance I + 1 1^T: W^T W = (I + 1 1^T)^-1
+        w = np.linalg.cholesky(np.eye(m) - np.ones((m, m)) / n).T
+        h2 = (bs[:, 2] - self.ue_height_m) ** 2
+
+        def raw(xy):
+            d = np.sqrt(np.sum((bs[:, :2] - xy) ** 2, axis=1) + h2)
+            return (d[others] - d[ref]) - rd[others]
+
+        def fun(xy):
+            return w @ raw(xy)
+
+        centroid = bs[:, :2].mean(axis=0)
+        starts = chan_initialisation(bs, rd, ref, self.ue_height_m)
+        starts.append(self._grid_start(bs, rd, ref, others))
+        line = _bs_line(bs)
+        if line is not None:
+            # collinear BSs: the fit is symmetric about their line, so the mirror image of
+            # every start is an equally good one; refining both finds the twin fix, which is
+            # then reported (``alternatives``, ``ambiguous``) instead of a silent coin toss
+            p0, u = line
+            starts += [2.0 * (p0 + u * ((x - p0) @ u)) - x for x in list(starts)]
+        sols = []
+        for x0 in starts:
+            try:
+                res = least_squares(fun, x0, method="lm", max_nfev=self.max_nfev,
+                                    xtol=1e-12, ftol=1e-12, gtol=1e-12)
+            except (ValueError, np.linalg.LinAlgError):   # pragma: no cover - defensive
+                continue
+            if np.all(np.isfinite(res.x)) and np.isfinite(res.cost):
+                sols.append(res)
+        best = min(sols, key=lambda r: r.cost) if sols else None
+        alternatives = []
+        if best is not None:
+            # equally good, distinct fixes (3 BSs, UE outside the hull: two hyperbola
+            # intersections). Keep the one nearest the network centroid, report the others.
+            rms_best = np.sqrt(np.mean(raw(best.x) ** 2))
+            twins = [r for r in sols if r.status > 0
+                     and np.sqrt(np.mean(raw(r.x) ** 2)) <= rms_best + 1e-6]
+            twins.sort(key=lambda r: np.linalg.norm(r.x - centroid))
+            for r in twins:
+                if all(np.linalg.norm(r.x - a) > 1.0 for a in alternatives):
+                    alternatives.append(r.x)
+            if twins:
+                best = twins[0]
+        pos_fallback = np.append(centroid, self.ue_height_m)
+        if best is None:
+            return MultilaterationResult(pos_fallback, False, STATUS_NO_CONVERGENCE,
+                                         "no start produced a finite solution", num_bs=n)
+        pos = np.append(best.x, self.ue_height_m)
+        r = raw(best.x)
+        rms = float(np.sqrt(np.mean(r**2)))
+        dof = n - 3
+        stat = float(2.0 * best.cost / self.sigma_m**2) if self.sigma_m else 0.0
+        g = gdop(bs, pos, ref)
+        common = dict(residual_rms_m=rms, chi2=stat, dof=dof, num_bs=n, gdop=g,
+                      nfev=int(best.nfev), starts=[np.asarray(s) for s in starts],
+                      alternatives=[np.append(a, self.ue_height_m) for a in alternatives[1:]])
+        if best.status <= 0:
+            return MultilaterationResult(pos, False, STATUS_NO_CONVERGENCE,
+                                         f"Levenberg-Marquardt stopped: {best.message}", **common)
+        dist = float(np.linalg.norm(best.x - centroid))
+        if dist > self.max_distance_m:
+            return MultilaterationResult(pos_fallback, False, STATUS_DIVERGED,
+                                         f"fix {dist:.0f} m from the network centroid "
+                                         f"(> {self.max_distance_m:.0f} m)", **common)
+        if rms > self.max_residual_m:
+            return MultilaterationResult(pos, False, STATUS_RESIDUAL,
+                                         f"rms range residual {rms:.2f} m > "
+                                         f"{self.max_residual_m:.2f} m (inconsistent RSTDs)",
+                                         **common)
+        if self.sigma_m and dof > 0 and stat > chi2.isf(self.false_alarm, dof):
+            return MultilaterationResult(pos, False, STATUS_RESIDUAL,
+                                         f"chi-square {stat:.1f} > {chi2.isf(self.false_alarm, dof):.1f}"
+                                         f" (dof {dof}, P_fa {self.false_alarm:g})", **common)
+        return MultilaterationResult(pos, True, STATUS_OK, "", **common)
+
+    def _grid_start(self, bs: np.ndarray, rd: np.ndarray, ref: int,
+                    others: np.ndarray) -> np.ndarray:
+        """Best node (least squared range-difference residual) of a coarse grid over the BS
+        hull padded by its size (at least 500 m)."""
+        lo, hi = bs[:, :2].min(axis=0), bs[:, :2].max(axis=0)
+        pad = max(500.0, float(np.max(hi - lo)))
+        gx = np.linspace(lo[0] - pad, hi[0] + pad, self.grid_points)
+        gy = np.linspace(lo[1] - pad, hi[1] + pad, self.grid_points)
+        xx, yy = np.meshgrid(gx, gy, indexing="ij")
+        pts = np.stack([xx.ravel(), yy.ravel()], axis=-1)                     # [G, 2]
+        d = np.sqrt(np.sum((pts[:, None, :] - bs[None, :, :2]) ** 2, axis=-1)
+                    + (bs[None, :, 2] - self.ue_height_m) ** 2)               # [G, N]
+        cost = np.sum((d[:, others] - d[:, ref:ref + 1] - rd[others]) ** 2, axis=1)
+        return pts[int(np.argmin(cost))]
+
+
+def multilaterate(bs_pos, rstd_s, ref_index: int = 0, valid=None, **config) -> MultilaterationResult:
+    """One-shot :class:`Multilaterator` (``config`` are its constructor arguments)."""
+    return Multilaterator(**config)(bs_pos, rstd_s, ref_index=ref_index, valid=valid)

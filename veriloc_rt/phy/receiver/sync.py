@@ -1,0 +1,140 @@
+"""Receiver front ends: received signal + local replica -> per-block cross-spectra.
+
+* :func:`frequency_cross_spectra` (fast path): the received resource grid times the conjugate
+  replica, one block per replica symbol; the bins are the subcarriers, ``f_k = (k - N_sc/2) SCS``.
+  Correlating per RE is the time-domain correlation of each symbol's FFT window with its replica,
+  evaluated only on the occupied subcarriers.
+* :func:`time_cross_spectra` (reference): for each replica symbol (CP included), the linear
+  correlation of the IQ buffer with the replica samples at lags in [-guard, window], computed by
+  FFT; only the in-band bins (|f| <= (N_sc/2 + 2) SCS) are kept, which is an ideal channel
+  filter and leaves the correlation inside the band unchanged.
+
+:func:`noise_variance` estimates the per-RE noise variance from the symbols no serving signal
+uses (the PRS occupies at most 12 of 14 symbols, the SRS a few).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft as sfft
+
+from ..channel import occupancy_groups, subcarrier_frequencies, symbol_layout
+from ..nr.ofdm import OFDM
+from .toa import CrossSpectra, spatial_dof
+
+__all__ = ["frequency_cross_spectra", "time_cross_spectra", "noise_variance", "block_index"]
+
+
+def block_index(replica: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(slot, symbol) of every replica symbol with a non-zero RE.
+
+    :param replica: [num_slots, 14, num_subcarriers] complex
+    :returns: slot_idx, sym_idx : [num_blocks] int64
+    """
+    used = np.any(replica != 0, axis=-1)
+    s, l = np.nonzero(used)
+    return s, l
+
+
+def _block_times(ofdm: OFDM, slots, s_idx: np.ndarray, l_idx: np.ndarray) -> np.ndarray:
+    starts, cps = symbol_layout(ofdm, slots)
+    return (starts[s_idx, l_idx] + cps[s_idx, l_idx] + (ofdm.fft_size - 1) / 2.0) / ofdm.sample_rate_hz
+
+
+def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots) -> CrossSpectra:
+    """Per-RE cross-spectra of a received grid with a replica grid, computed on the replica's
+    REs only when it leaves some empty (``CrossSpectra.parts``; a comb-6 PRS: 1/6 of them).
+
+    :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
+    :param replica: [num_slots, 14, num_subcarriers] complex (0 off the replica's REs)
+    """
+    rx_grid = np.asarray(rx_grid)
+    if rx_grid.ndim != 4 or rx_grid.shape[1:] != replica.shape:
+        raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
+                         "must be [A, S, 14, K] and [S, 14, K]")
+    s_idx, l_idx = block_index(replica)
+    rep = replica[s_idx, l_idx]                                   # [B, K]
+    groups = occupancy_groups(rep != 0)
+    if groups is None:
+        parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
+    else:   # only the replica's REs: S = Y X* is zero elsewhere
+        spectra = None
+        parts = tuple((b, k, rx_grid[:, s_idx[b][:, None], l_idx[b][:, None], k[None, :]]
+                       * np.conj(rep[b[:, None], k[None, :]])[None]) for b, k in groups)
+    return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
+                        bin_spacing_hz=ofdm.subcarrier_spacing_hz,
+                        block_times=_block_times(ofdm, slots, s_idx, l_idx),
+                        ref_power=np.abs(rep) ** 2,
+                        band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz, parts=parts)
+
+
+def time_cross_spectra(rx_iq: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots, guard_s: float,
+                       window_s: float) -> CrossSpectra:
+    """Per-symbol time-domain correlation of an IQ buffer with the replica waveform.
+
+    :param rx_iq: [num_ant, num_samples] complex, the buffer (sample 0 = timing reference)
+    :param replica: [num_slots, 14, num_subcarriers] complex, replica grid (modulated here)
+    :param guard_s, window_s: lags searched, [-guard_s, window_s], s
+    """
+    rx_iq = np.asarray(rx_iq)
+    fs = ofdm.sample_rate_hz
+    wave = ofdm.modulate(replica, slots)
+    s_idx, l_idx = block_index(replica)
+    starts, cps = symbol_layout(ofdm, slots)
+    starts, cps = starts[s_idx, l_idx], cps[s_idx, l_idx]
+    lens = cps + ofdm.fft_size
+    g = int(np.ceil(guard_s * fs)) + 2
+    w = int(np.ceil(window_s * fs)) + 2
+    n_f = sfft.next_fast_len(int(lens.max()) + g + w + 1)
+    need = int(starts.max()) + n_f
+    ypad = np.zeros((rx_iq.shape[0], need + g), dtype=np.complex128)
+    n_copy = min(rx_iq.shape[1], need)
+    ypad[:, g:g + n_copy] = rx_iq[:, :n_copy]
+    seg_idx = starts[:, None] + np.arange(n_f)[None, :]          # into ypad: y[start - g + n]
+    s_seg = np.zeros((len(starts), n_f), dtype=np.complex128)
+    for b, (st, ln) in enumerate(zip(starts, lens)):
+        s_seg[b, :ln] = wave[st:st + ln]
+    f = sfft.fftfreq(n_f, 1.0 / fs)
+    keep = np.abs(f) <= (ofdm.num_subcarriers / 2 + 2) * ofdm.subcarrier_spacing_hz
+    f = f[keep]
+    s_f = sfft.fft(s_seg, axis=-1)[..., keep]
+    shift = np.exp(2j * np.pi * f * g / fs)                       # lag 0 at the block start
+    spectra = np.empty((rx_iq.shape[0],) + s_f.shape, dtype=np.complex128)
+    for a in range(rx_iq.shape[0]):                               # one antenna at a time: memory
+        y_f = sfft.fft(ypad[a, seg_idx], axis=-1)[..., keep]      # [B, bins]
+        spectra[a] = y_f * np.conj(s_f) * (shift / n_f)
+    return CrossSpectra(spectra=spectra, freqs=f, bin_spacing_hz=fs / n_f,
+                        block_times=_block_times(ofdm, slots, s_idx, l_idx),
+                        ref_power=np.abs(s_f) ** 2 / n_f,
+                        band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz)
+
+
+def noise_variance(rx_grid: np.ndarray, busy_symbols) -> float:
+    """Mean |Y|^2 over the symbols no serving signal uses: per-RE noise variance.
+
+    :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
+    :param busy_symbols: symbol indices (0..13) carrying signals
+    :returns: float (NaN when every symbol is busy)
+    """
+    free = [l for l in range(rx_grid.shape[-2]) if l not in set(int(b) for b in busy_symbols)]
+    if not free:
+        return float("nan")
+    return float(np.mean(np.abs(rx_grid[..., free, :]) ** 2))
+
+
+def noise_dof(rx_grid: np.ndarray, busy_symbols) -> float:
+    """Effective degrees of freedom of the antenna-summed noise on the free symbols.
+
+    White noise, independent per antenna, gives 2 A; noise from one direction (a jammer, a
+    relay's amplified noise) is coherent across the array and gives 2: its sum over antennas
+    has the tail of a single exponential, which a 2 A-dof threshold underestimates by several
+    dB. See :func:`~veriloc_rt.phy.receiver.toa.spatial_dof`.
+
+    :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
+    :returns: float in [2, 2 num_ant] (2 num_ant when every symbol is busy)
+    """
+    a = rx_grid.shape[0]
+    free = [l for l in range(rx_grid.shape[-2]) if l not in set(int(b) for b in busy_symbols)]
+    if not free:
+        return 2.0 * a
+    return spatial_dof(rx_grid[..., free, :].reshape(a, -1))

@@ -1,0 +1,140 @@
+"""Receiver side of the tags: extract a BS's tag REs, estimate the channel, decode, verify.
+
+No equalisation is assumed. Either per-RE channel estimates are given, or the channel on the tag
+REs is estimated from the BS's own PRS REs of the same symbol (the receiver knows its PRS, and
+for an encrypted PRS it holds the BS's AES key): least-squares estimates on the PRS REs, the
+common delay ramp removed (the staggered comb covers every subcarrier, so the phase step between
+adjacent subcarriers is unambiguous up to 1/SCS = 66.7 us at mu = 0), linear interpolation to the
+tag subcarriers, ramp restored. The noise variance comes from the pilots' second differences.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from ...config.nr import NRConfig
+from ...config.security import SecurityConfig
+from ..nr.grid import ReLayout
+from ..nr.prs import SYMBOLS_PER_SLOT
+from ..security.keys import BSKeys
+from ..security.tag_modem import TagModem
+from ..security.tags import check_tag, tag_message
+from ..transmitter import prs_replica, serving_setup
+
+
+def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.ndarray,
+                         smoothing: int = 2) -> tuple[np.ndarray, float]:
+    """Channel on BS ``bs``'s tag REs from its PRS REs, and the noise variance per RE.
+
+    :param smoothing: half-width in pilots of the moving average applied to the de-rotated
+        pilots of each symbol (2: 5 pilots, 30 subcarriers = 450 kHz at mu = 0 and comb 6, inside
+        the coherence bandwidth of a 0.3 us rms delay spread); 0 disables it
+
+    :param rx: [14, num_subcarriers] complex, received slot grid
+    :param replica: [14, num_subcarriers] complex, the BS's PRS of that slot (unit modulus)
+    :return: h : [num_symbols, res_per_symbol] complex128 on the tag REs (tag order);
+        noise_var : float, per RE
+    """
+    sym = layout.symbols[:, None]
+    kp = layout.prs_subcarriers(bs)
+    kt = layout.tag_subcarriers(bs)
+    h_ls = rx[sym, kp] * np.conj(replica[sym, kp])  # [L, n]
+    # phase step per subcarrier from all symbols' pilots placed on one axis (staggered comb)
+    full = np.zeros(layout.num_subcarriers, dtype=np.complex128)
+    count = np.zeros(layout.num_subcarriers)
+    np.add.at(full, kp.ravel(), h_ls.ravel())
+    np.add.at(count, kp.ravel(), 1.0)
+    both = (count[1:] > 0) & (count[:-1] > 0)
+    if np.any(both):
+        step = np.angle(np.sum(full[1:][both] * np.conj(full[:-1][both])))
+    else:  # comb covers only some subcarriers: use the within-symbol pilot spacing
+        step = np.angle(np.sum(h_ls[:, 1:] * np.conj(h_ls[:, :-1]))) / layout.comb
+    flat = h_ls * np.exp(-1j * step * kp)
+    if smoothing > 0:
+        w = 2 * smoothing + 1
+        flat_s = (uniform_filter1d(flat.real, w, axis=1, mode="nearest")
+                  + 1j * uniform_filter1d(flat.imag, w, axis=1, mode="nearest"))
+    else:
+        flat_s = flat
+    h = np.empty(kt.shape, dtype=np.complex128)
+    for j in range(kt.shape[0]):
+        h[j] = np.interp(kt[j], kp[j], flat_s[j].real) + 1j * np.interp(kt[j], kp[j], flat_s[j].imag)
+    h *= np.exp(1j * step * kt)
+    # the floor is relative to the pilots' power: the grid is in physical units (per-RE noise
+    # ~1e-13 W), where an absolute floor would overstate the noise and flatten the LLRs
+    power = float(np.mean(np.abs(flat) ** 2))
+    if flat.shape[1] >= 3:
+        d = flat[:, 1:-1] - 0.5 * (flat[:, :-2] + flat[:, 2:])
+        noise_var = float(np.mean(np.abs(d) ** 2) / 1.5)  # var(n - (n1 + n2)/2) = 1.5 var(n)
+    else:  # no second differences: assume 0 dB per RE
+        noise_var = power
+    return h, max(noise_var, 1e-12 * power, np.finfo(float).tiny)
+
+
+@dataclass(frozen=True)
+class TagCheck:
+    """Outcome of one slot's tag: LDPC converged, and the tag verified."""
+
+    decoded: bool
+    valid: bool
+
+
+class TagVerifier:
+    """Checks the tags of the serving BSs in received slot grids (UE side).
+
+    :param keys: by BS id; HMAC needs the shared key, DS only the public key, an encrypted PRS
+        (used for channel estimation) the AES key
+    :param smoothing: pilot moving-average half-width of :func:`estimate_tag_channel`
+    """
+
+    def __init__(self, nr: NRConfig, security: SecurityConfig, bs_ids: Sequence[int],
+                 keys: Mapping[int, BSKeys], smoothing: int = 2):
+        if security.tag_scheme == "none":
+            raise ValueError("security.tag_scheme is 'none': there are no tags to verify")
+        self.nr, self.security = nr, security
+        self.layout = ReLayout.from_config(nr, True)
+        self.setups = serving_setup(nr, security, bs_ids)
+        self.keys = dict(keys)
+        self.smoothing = smoothing
+        self.modem = TagModem(security.tag_scheme, self.layout.num_symbols * self.layout.res_per_symbol,
+                              security.tag_fill, security.ldpc_iterations, security.ldpc_method)
+
+    def check(self, rx_slot: np.ndarray, bs: int, frame: int, slot: int,
+              channel: np.ndarray | None = None, noise_var: float | None = None) -> TagCheck:
+        """Decode and verify BS ``bs``'s tag in one received slot.
+
+        :param rx_slot: [14, num_subcarriers] complex, received grid of slot ``slot``
+        :param channel: [14, num_subcarriers] complex per-RE channel estimate; None: from the PRS
+        :param noise_var: noise variance per RE; None: estimated from the PRS REs
+        """
+        rx_slot = np.asarray(rx_slot)
+        if rx_slot.shape != (SYMBOLS_PER_SLOT, self.layout.num_subcarriers):
+            raise ValueError(f"Argument `rx_slot` must have shape (14, {self.layout.num_subcarriers}), "
+                             f"not {rx_slot.shape}")
+        setup = self.setups[bs]
+        keys = self.keys[setup.bs_id]
+        sym = self.layout.symbols[:, None]
+        kt = self.layout.tag_subcarriers(bs)
+        nv_est = noise_var
+        if channel is None:
+            key = keys.aes_key if setup.prs.encrypted else None
+            replica = prs_replica(self.layout, bs, setup, frame, [slot], key)[0]
+            h, nv = estimate_tag_channel(rx_slot, self.layout, bs, replica, self.smoothing)
+            nv_est = nv if noise_var is None else noise_var
+        else:
+            h = np.asarray(channel)[sym, kt]
+            if nv_est is None:
+                raise ValueError("Argument `noise_var` is needed with a given `channel`")
+        tag, decoded = self.modem.demodulate(rx_slot[sym, kt].ravel(), h.ravel(), nv_est)
+        msg = tag_message(self.security.tag_scheme, setup.bs_id, frame, slot, setup.prs)
+        valid = check_tag(self.security.tag_scheme, keys, msg, tag)
+        return TagCheck(decoded, valid)
+
+    def __call__(self, rx_slot: np.ndarray, bs: int, frame: int, slot: int,
+                 channel: np.ndarray | None = None, noise_var: float | None = None) -> bool:
+        """True iff BS ``bs``'s tag in this slot verifies (see :meth:`check`)."""
+        return self.check(rx_slot, bs, frame, slot, channel, noise_var).valid

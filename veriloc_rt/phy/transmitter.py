@@ -1,0 +1,171 @@
+"""The legitimate BS transmitter: PRS (standard or AES-CTR encrypted) plus tags, per frame.
+
+A :class:`PRSTransmitter` is configured once (waveform config, security config, the serving BS
+ids and their keys) and called on a frame counter to give every BS's resource grid; its
+:meth:`~PRSTransmitter.waveform` OFDM-modulates them. :func:`prs_replica` gives the receiver's
+local PRS replica of one BS (standard, or encrypted with that BS's key).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config.security import SecurityConfig
+from .security.encryption import keystream_bits_many
+from .security.keys import BSKeys
+from .security.tag_modem import TagModem
+from .security.tags import PRSParams, make_tag, tag_message
+from ..config.nr import NRConfig
+from .nr.grid import ReLayout
+from .nr.ofdm import OFDM
+from .nr.prs import SYMBOLS_PER_SLOT, prs_bits, qpsk
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BSSetup:
+    """One serving BS: its identity and the PRS configuration its tags bind."""
+
+    bs_id: int
+    prs: PRSParams
+
+
+def serving_setup(nr: NRConfig, security: SecurityConfig, bs_ids: Sequence[int]) -> list[BSSetup]:
+    """PRS set-up of each serving BS (position ``i`` takes ``nr.comb_offsets[i]`` etc.)."""
+    if len(bs_ids) != nr.num_bs:
+        raise ValueError(f"Argument `bs_ids` must name {nr.num_bs} BSs (one per comb offset), "
+                         f"not {len(bs_ids)}")
+    if len(security.encrypted) != nr.num_bs:
+        raise ValueError(f"security.encrypted has {len(security.encrypted)} flags for {nr.num_bs} BSs")
+    return [BSSetup(int(b), PRSParams(nr.prs_ids[i], nr.comb, nr.comb_offsets[i], nr.num_symbols,
+                                      nr.start_symbol, nr.num_prb, nr.numerology,
+                                      bool(security.encrypted[i])))
+            for i, b in enumerate(bs_ids)]
+
+
+def prs_replica(layout: ReLayout, bs: int, setup: BSSetup, frame: int, slots: Sequence[int],
+                aes_key: bytes | None = None) -> np.ndarray:
+    """PRS-only grid of BS position ``bs``: the local replica a receiver correlates with.
+
+    :param aes_key: None for the standard PRS; the BS's key for its encrypted PRS
+    :return: grid : [num_slots, 14, num_subcarriers] complex128, unit-energy PRS REs, 0 elsewhere
+    """
+    k = layout.prs_subcarriers(bs)
+    n = layout.res_per_symbol
+    grid = np.zeros((len(slots), SYMBOLS_PER_SLOT, layout.num_subcarriers), dtype=np.complex128)
+    pairs = [(int(s), int(l)) for s in slots for l in layout.symbols]
+    bits = np.array([prs_bits(setup.prs.n_id_seq, s, l, n) for s, l in pairs])       # [S L, 2 n]
+    if aes_key is not None:   # b_PRSenc = b_PRS XOR p, every symbol's keystream in one AES call
+        bits = bits ^ keystream_bits_many(aes_key, setup.bs_id, frame, pairs, 2 * n)
+    r = qpsk(bits).reshape(len(slots), len(layout.symbols), n)
+    grid[:, np.asarray(layout.symbols)[:, None], k] = r
+    return grid
+
+
+class PRSTransmitter:
+    """Resource grids and waveforms of the serving BSs.
+
+    :param nr: waveform config
+    :param security: encryption flags, tag scheme and LDPC settings
+    :param bs_ids: identity of the BS at each serving position
+    :param keys: key set by BS id (BS side, with signing keys); needed for encryption and tags
+    """
+
+    def __init__(self, nr: NRConfig, security: SecurityConfig, bs_ids: Sequence[int],
+                 keys: Mapping[int, BSKeys] | None = None):
+        nr.validate()
+        security.validate()
+        self.nr, self.security = nr, security
+        self.tags = security.tag_scheme != "none"
+        self.layout = ReLayout.from_config(nr, self.tags)
+        self.setups = serving_setup(nr, security, bs_ids)
+        needs_keys = self.tags or any(s.prs.encrypted for s in self.setups)
+        if needs_keys:
+            missing = [s.bs_id for s in self.setups if keys is None or s.bs_id not in keys]
+            if missing:
+                raise ValueError(f"no keys for BS {missing}")
+        self.keys = dict(keys) if keys is not None else {}
+        self.ofdm = OFDM(nr)
+        self._standard: dict[tuple, np.ndarray] = {}
+        self._encrypted: dict[tuple, np.ndarray] = {}
+        self.modem = (TagModem(security.tag_scheme, self.layout.num_symbols * self.layout.res_per_symbol,
+                               security.tag_fill, security.ldpc_iterations, security.ldpc_method)
+                      if self.tags else None)
+
+    @property
+    def num_bs(self) -> int:
+        return len(self.setups)
+
+    def frame_slots(self, slots: Sequence[int] | None) -> list[int]:
+        """The slot indices ``slots`` as a list (None: every PRS slot of a frame); raises
+        ValueError for a slot outside the frame (10 * 2^mu slots, TS 38.211 4.3.2)."""
+        if slots is None:
+            return list(range(self.nr.slots_per_frame))
+        out = [int(s) for s in slots]
+        if any(not 0 <= s < 10 * 2**self.nr.numerology for s in out):
+            raise ValueError(f"Argument `slots` must lie in 0..{10 * 2**self.nr.numerology - 1}")
+        return out
+
+    def replica(self, bs: int, frame: int, slots: Sequence[int] | None = None,
+                encrypted: bool | None = None) -> np.ndarray:
+        """Local PRS replica of serving BS ``bs`` (default: encrypted iff the BS encrypts).
+
+        :return: grid : [num_slots, 14, num_subcarriers] complex128
+        """
+        enc = self.setups[bs].prs.encrypted if encrypted is None else encrypted
+        slots = self.frame_slots(slots)
+        if enc:   # cached for the frame in hand (the grids and the receiver's replica share it)
+            ck = (bs, tuple(slots), frame)
+            if ck not in self._encrypted:
+                if len(self._encrypted) >= 2 * self.num_bs:
+                    self._encrypted.clear()
+                key = self.keys[self.setups[bs].bs_id].aes_key
+                self._encrypted[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots, key)
+                self._encrypted[ck].setflags(write=False)
+            return self._encrypted[ck].copy()
+        # the standard PRS is the same in every frame: cached per (BS position, slots)
+        ck = (bs, tuple(slots))
+        if ck not in self._standard:
+            self._standard[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots)
+            self._standard[ck].setflags(write=False)
+        return self._standard[ck].copy()
+
+    def tag_symbols(self, bs: int, frame: int, slot: int) -> np.ndarray:
+        """QPSK tag symbols of BS ``bs`` for one slot, in tag-RE order (symbol, subcarrier).
+
+        :return: x : [num_symbols * res_per_symbol] complex128
+        """
+        if self.modem is None:
+            raise ValueError("tag_scheme is 'none'")
+        setup = self.setups[bs]
+        msg = tag_message(self.security.tag_scheme, setup.bs_id, frame, slot, setup.prs)
+        return self.modem.modulate(make_tag(self.security.tag_scheme, self.keys[setup.bs_id], msg))
+
+    def __call__(self, frame: int, slots: Sequence[int] | None = None) -> np.ndarray:
+        """Resource grids of frame ``frame`` (a 32-bit frame counter).
+
+        :return: grid : [num_bs, num_slots, 14, num_subcarriers] complex128
+        """
+        slots = self.frame_slots(slots)
+        grids = np.stack([self.replica(bs, frame, slots) for bs in range(self.num_bs)])
+        if self.tags:
+            for bs in range(self.num_bs):
+                k = self.layout.tag_subcarriers(bs)
+                sym = self.layout.symbols[:, None]
+                for i, s in enumerate(slots):
+                    grids[bs, i, sym, k] = self.tag_symbols(bs, frame, s).reshape(k.shape)
+        log.debug("frame %d: %d BS x %d slots", frame, self.num_bs, len(slots))
+        return grids
+
+    def waveform(self, frame: int, slots: Sequence[int] | None = None) -> np.ndarray:
+        """Time-domain baseband of each BS.
+
+        :return: x : [num_bs, num_samples] complex128 at ``nr.resolved_sample_rate_hz``
+        """
+        slots = self.frame_slots(slots)
+        return self.ofdm.modulate(self(frame, slots), slots)

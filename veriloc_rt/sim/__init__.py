@@ -1,0 +1,7 @@
+"""Layer 8, simulation: a whole run over the trajectory.
+
+:mod:`.runner` (one scenario point by point: chains, adversary, detectors, outcome),
+:mod:`.executors` (where the chains run: here, forked processes, Dask), :mod:`.run_folder`
+(``run.json``, resume, versions, keys), :mod:`.engine` (:func:`~.engine.run`, the main job)
+and :mod:`.montecarlo` (realisations, mean and confidence intervals).
+"""

@@ -1,0 +1,241 @@
+"""The main job: geometry -> propagation -> per-point chain and detectors -> results on disk.
+
+:func:`run` builds the scene and trajectories, ray-traces (or draws) every link once, then
+evaluates each configured scenario (``none``, ``fbs``, ``meaconing``, ``jamming``) point by
+point with :class:`~veriloc_rt.sim.runner.ScenarioRunner`, writing each row to
+``<scenario>_results.csv`` as soon as it exists. ``resume=True`` keeps the rows already on disk
+(the config must be the one that produced them) and continues after them; the result is the
+same as an uninterrupted run. At the end it writes ``metrics.json``, ``run.json`` and the plots.
+
+Executors: the detectors carry state from point to point and run here, in order; the chains of
+the points ahead go to forked local processes (``workers``) or, in trajectory chunks, to a Dask
+cluster (``scheduler``), with the serial run's numbers either way (see the executors in
+:mod:`~veriloc_rt.sim.executors`). Monte Carlo over realisations: :mod:`~veriloc_rt.sim.montecarlo`.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import resource
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..config import Config
+from ..errors import InputError
+from ..propagation.raytrace import Propagation, trace
+from ..propagation.stochastic import uma_propagation
+from ..report import plots
+from ..report.paper import PAPER_RATES
+from ..report.propagation_summary import summarize
+from ..report.results import ResultsWriter, read_rows, results_path, scenario_metrics
+from ..report.scene_plot import plot_top_view
+from ..world.geometry import Geometry, build_geometry
+from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
+from .run_folder import check_resume, run_keys, write_run_json
+from .runner import ScenarioRunner
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[str, int, int], None]
+
+
+@dataclass(frozen=True, eq=False)
+class Results:
+    """What a run produced.
+
+    rows : {scenario: list of PointRow}; metrics : the content of ``metrics.json``
+    """
+
+    config: Config
+    geometry: Geometry
+    propagation: Propagation
+    summary: dict
+    timing_s: dict = field(default_factory=dict)
+    out_dir: Path | None = None
+    rows: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+
+
+def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | None = None,
+                        cache_dir: str | Path | None = "default") -> Propagation:
+    """CIRs of every link, from the configured model.
+
+    Ray tracing traces the adversary's links (BS -> adversary, adversary -> UE) only where the
+    run uses them, the attack window of an attack scenario: the adversary -> UE links are
+    point-to-point, batch poorly, and were half the tracing time of the paper run when traced at
+    every point. (UMa draws them everywhere: free, and the draws stay as they were.)
+    """
+    if cfg.propagation.model == "uma":
+        return uma_propagation(geometry, cfg.propagation, cfg.seed)
+    attacks = any(s != "none" for s in cfg.run.scenarios)
+    window = cfg.run.attack_points(geometry.num_points) & attacks
+    cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None
+    return trace(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
+                 adversary_points=window)
+
+
+def propagation_summary(geometry: Geometry, prop: Propagation) -> dict:
+    scene = geometry.scene
+    return {
+        "num_points": geometry.num_points,
+        "num_bs": int(len(geometry.bs_pos)),
+        "num_buildings": getattr(scene, "num_buildings", None),
+        "num_triangles": int(scene.box_meshes()[1].shape[0] if hasattr(scene, "box_meshes")
+                             else scene.triangles.shape[0]),
+        "ue_path_length_m": float(geometry.ue.s[-1] - geometry.ue.s[0]),
+        "ue_speed_mps_mean": float(np.linalg.norm(geometry.ue.vel, axis=1).mean()),
+        "bs_to_ue": summarize(prop.bs_ue),
+        "bs_to_adversary": summarize(prop.bs_adv),
+        "adversary_to_ue": summarize(prop.adv_ue),
+        "raytrace_stats": prop.stats,
+    }
+
+
+def _peak_rss_mib() -> dict:
+    """Peak resident memory so far, MiB: this process and its largest finished child (a forked
+    chain worker; workers are joined before this is read). Linux reports ru_maxrss in KiB."""
+    return {"peak_rss_main_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "peak_rss_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
+
+
+def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
+        resume: bool = False, workers: int = 1, scheduler=None) -> Results:
+    """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
+
+    One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
+
+    :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
+    :param resume: keep the rows already in ``out_dir`` and continue after them
+    :param workers: processes computing the per-point chains (forked; the detectors, which
+        carry state from point to point, run in this process); same results for any number
+    :param scheduler: compute the chains on a Dask cluster instead, in trajectory chunks: a
+        scheduler address (``tcp://host:8786``) or a connected ``distributed.Client``; same
+        results as the serial run. Not together with ``workers > 1``.
+    """
+    check_workers(workers, scheduler)
+    with scheduler_client(scheduler) as client:  # a bad address fails now, before heavy work
+        return _run(cfg, out_dir, progress, resume, workers, client)
+
+
+def _run(cfg: Config, out_dir, progress: Progress | None, resume: bool, workers: int,
+         client) -> Results:
+    timing: dict = {}
+    t0 = time.perf_counter()
+    out = Path(out_dir) if out_dir is not None else None
+    if resume:
+        if out is None:
+            raise ValueError("Argument `resume` needs `out_dir`")
+        check_resume(out, cfg)
+    scene_dir = (out / "scene") if out else Path(".veriloc-scene")
+    geometry = build_geometry(cfg, scene_dir)
+    keys = run_keys(cfg, len(geometry.bs_pos))  # bad key files fail now, before any tracing
+    timing["geometry"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    prop = compute_propagation(cfg, geometry, progress)
+    timing["propagation"] = time.perf_counter() - t1
+    summary = propagation_summary(geometry, prop)
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "propagation_summary.json").write_text(json.dumps(summary, indent=2))
+        write_run_json(out, cfg, "running", timing, {"scene_xml": str(geometry.scene_xml)})
+
+    runner = ScenarioRunner(cfg, geometry, prop, keys)
+    pool = None
+    try:
+        if client is not None:
+            pool = DaskChains(runner, client)
+            timing["scheduler"] = client.scheduler.address
+        elif workers > 1:
+            pool = ForkPool(runner, workers)
+        rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing)
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+        raise
+    if pool is not None:
+        pool.close()
+    timing.update({f"{k}_total": v for k, v in runner.timing.items()})
+    timing["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
+    timing["total"] = time.perf_counter() - t0
+    timing.update(_peak_rss_mib())
+    metrics["timing_s"] = timing
+    metrics["propagation_model"] = cfg.propagation.model
+    if out:
+        (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+        _write_plots(out, cfg, geometry, metrics)
+        write_run_json(out, cfg, "complete", timing, {"scene_xml": str(geometry.scene_xml)})
+    return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
+
+
+def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
+                   progress: Progress | None, timing: dict) -> tuple[dict, dict]:
+    """Every scenario point by point: chains from ``pool`` (None: here), detectors here."""
+    n = runner.geo.num_points
+    rows: dict = {}
+    metrics: dict = {"scenarios": {}}
+    for scenario in cfg.run.scenarios:
+        t_s = time.perf_counter()
+        runner.reset()
+        done: list = []
+        if resume and results_path(out, scenario).exists():
+            done = read_rows(results_path(out, scenario))[:n]
+            if [r.index for r in done] != list(range(len(done))):
+                raise InputError("--resume", f"{results_path(out, scenario)} is not a prefix of "
+                                 "this run's points; use a new --out")
+            runner.replay(done)
+            log.info("%s: resuming after %d of %d points", scenario, len(done), n)
+        writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
+        prev = done[-1].index if done else None
+        todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
+        ahead = (pool or LocalChains(runner)).imap(scenario, todo)
+        todo_set = set(todo)
+        # progress in point-scenarios computed (a point of 'none' in the attack window also
+        # computes the later attack scenarios there), so that the ETA follows the work
+        work = {i: runner.chain_work(scenario, i) for i in todo}
+        work_total, work_done = sum(work.values()), 0
+        try:
+            for i in range(len(done), n):
+                if i in todo_set:
+                    j, results, dt = next(ahead)
+                    assert j == i
+                    runner.store_chains(results)
+                    for k, v in dt.items():
+                        runner.timing[k] += v
+                row = runner.point(scenario, i, prev)
+                prev = i
+                done.append(row)
+                if writer:
+                    writer.write(row)
+                if progress and not work_total:   # nothing left to compute: the points
+                    progress(scenario, i + 1, n)
+                elif progress and i in work:
+                    work_done += work[i]
+                    progress(scenario, work_done, work_total)
+        finally:
+            if writer:
+                writer.close()
+        rows[scenario] = done
+        metrics["scenarios"][scenario] = scenario_metrics(done, scenario)
+        timing[f"scenario_{scenario}"] = time.perf_counter() - t_s
+    return rows, metrics
+
+
+def _write_plots(out: Path, cfg: Config, geometry: Geometry, metrics: dict) -> None:
+    plot_top_view(geometry, out / "scene_top_view.png")
+    plots.plot_outcomes(metrics, out / "outcomes.png")
+    plots.plot_detection_rates(metrics, out / "detection_rates.png", reference=PAPER_RATES,
+                               title="correct decisions (dashed: the paper, on UMa)")
+    window = cfg.run.attack_points(geometry.num_points)
+    idx = np.flatnonzero(window)
+    span = (int(idx[0]), int(idx[-1]) + 1) if idx.size else None  # 0-based, stop excluded
+    for scenario in cfg.run.scenarios:
+        data = plots.read_results_csv(out / f"{scenario}_results.csv")
+        plots.plot_time_series(data, out / f"{scenario}_timeseries.png",
+                               span if scenario != "none" else None, title=scenario)
+        plots.plot_trajectory_map(data, geometry.bs_pos, out / f"{scenario}_map.png",
+                                  adversary_xy=geometry.adversary.pos[:, :2], title=scenario)

@@ -1,0 +1,242 @@
+"""Executors: where the chains of the points ahead are computed.
+
+The detectors carry state from point to point, so they run in order in the engine's process;
+the chains of the points ahead are independent (every draw comes from a named stream per
+point) and go to an executor: this process (:class:`LocalChains`), forked local processes
+(:class:`ForkPool`) or a Dask cluster (:class:`DaskChains`). ``imap(scenario, points)`` yields
+``(i, results, timing)`` for every point, in order, with ``results`` for
+:meth:`~veriloc_rt.sim.runner.ScenarioRunner.store_chains`; the numbers are the serial run's
+whatever the executor. Also the Dask plumbing a Monte Carlo run uses: :func:`connect`,
+:func:`local_cluster`, and the one check of ``workers``/``scheduler`` arguments.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import signal
+import threading
+import uuid
+from collections import deque
+from contextlib import contextmanager
+
+from ..errors import InputError
+from .run_folder import run_keys
+from .runner import ScenarioRunner
+
+log = logging.getLogger(__name__)
+
+__all__ = ["LocalChains", "ForkPool", "DaskChains", "check_workers", "scheduler_client",
+           "connect", "local_cluster", "CONNECT_TIMEOUT_S"]
+
+
+def check_workers(workers, scheduler) -> None:
+    """Raise ValueError unless ``workers`` is an integer >= 1, and 1 with a ``scheduler``."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"Argument `workers` must be an integer >= 1, not {workers!r}")
+    if scheduler is not None and workers > 1:
+        raise ValueError("Argument `workers` must be 1 with `scheduler` (the cluster's workers "
+                         f"compute), not {workers!r}")
+
+
+@contextmanager
+def scheduler_client(scheduler):
+    """The ``distributed.Client`` of ``scheduler``: connected here (and closed on exit) when it
+    is an address, so that a bad address fails before any heavy work; else ``scheduler``
+    itself (a connected client, or None)."""
+    own = connect(scheduler) if isinstance(scheduler, str) else None
+    try:
+        yield own if own is not None else scheduler
+    finally:
+        if own is not None:
+            own.close()
+
+
+#: the runner a forked worker process uses (set by :class:`ForkPool` before forking)
+_WORKER: ScenarioRunner | None = None
+
+
+def _work(task: tuple[str, int]) -> tuple[int, dict, dict]:
+    scenario, i = task
+    return _WORKER.worker_chains(scenario, i)
+
+
+class LocalChains:
+    """The chains computed in this process, ahead of the detectors like a pool's (so a point's
+    attack scenarios share its serving BSs' signal here too: :meth:`ScenarioRunner.compute_chains`)."""
+
+    def __init__(self, runner: ScenarioRunner):
+        self.runner = runner
+
+    def imap(self, scenario: str, points: list[int]):
+        for i in points:   # the runner's own timing counts them
+            yield i, self.runner.compute_chains(scenario, i), {}
+
+    def close(self) -> None:
+        pass
+
+    terminate = close
+
+
+class ForkPool:
+    """``workers`` forked processes computing :meth:`ScenarioRunner.compute_chains`.
+
+    Forked, so the workers inherit the runner (keys included) without pickling it.
+    """
+
+    def __init__(self, runner: ScenarioRunner, workers: int):
+        global _WORKER
+        _WORKER = runner
+        self.pool = mp.get_context("fork").Pool(workers, initializer=_ignore_sigint)
+
+    def imap(self, scenario: str, points: list[int]):
+        return self.pool.imap(_work, [(scenario, i) for i in points], chunksize=2)
+
+    def close(self) -> None:
+        self.pool.close()
+        self.pool.join()
+
+    def terminate(self) -> None:
+        self.pool.terminate()
+
+
+def _ignore_sigint() -> None:
+    """Workers leave Ctrl-C to the parent, which terminates them and keeps the finished rows."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+#: on a Dask worker: the runners of the runs it computes chunks for, by (token, thread id)
+_DASK_RUNNERS: dict[tuple[str, int], ScenarioRunner] = {}
+
+
+_DASK_LOCK = threading.Lock()
+
+
+def _dask_chunk(token: str, spec: tuple, scenario: str, points: list[int]) -> list[tuple]:
+    """A Dask task: the chains of ``points`` (a trajectory chunk).
+
+    The runner is built once per worker thread (a runner is not thread-safe) from
+    ``spec = (cfg, geometry, propagation)``; the keys are rebuilt from the config, as the
+    Ed25519 key objects do not pickle.
+    """
+    k = (token, threading.get_ident())
+    with _DASK_LOCK:
+        runner = _DASK_RUNNERS.get(k)
+    if runner is None:
+        cfg, geometry, prop = spec
+        runner = ScenarioRunner(cfg, geometry, prop, run_keys(cfg, len(geometry.bs_pos)))
+        with _DASK_LOCK:
+            _DASK_RUNNERS[k] = runner
+    return [runner.worker_chains(scenario, i) for i in points]
+
+
+def _dask_forget(token: str) -> int:
+    """On every worker when a run ends: drop its runners (and with them its propagation)."""
+    with _DASK_LOCK:
+        keys = [k for k in _DASK_RUNNERS if k[0] == token]
+        for k in keys:
+            del _DASK_RUNNERS[k]
+    return len(keys)
+
+
+class DaskChains:
+    """Trajectory chunks as tasks on a Dask cluster (a connected ``distributed.Client``).
+
+    The run's config, geometry and propagation go to every worker once; each chunk of
+    ``chunk`` points is one task; at most two chunks per worker thread (plus one) are in
+    flight, so results never pile up on the cluster ahead of the detectors.
+
+    :param chunk: points per task (None: about four tasks per worker thread, 1 to 16 points)
+    """
+
+    def __init__(self, runner: ScenarioRunner, client, chunk: int | None = None):
+        self.client, self.chunk = client, chunk
+        self.token = f"veriloc-chains-{uuid.uuid4().hex}"
+        self.threads = max(1, sum(client.nthreads().values()))
+        [self.spec] = client.scatter([(runner.cfg, runner.geo, runner.prop)], broadcast=True,
+                                     hash=False)
+        self.inflight: set = set()
+        log.info("Dask: %d worker threads at %s", self.threads, client.scheduler.address)
+
+    def imap(self, scenario: str, points: list[int]):
+        size = self.chunk or max(1, min(16, -(-len(points) // (4 * self.threads))))
+        chunks = [points[k:k + size] for k in range(0, len(points), size)]
+        pending: deque = deque()
+        nxt = 0
+        while pending or nxt < len(chunks):
+            while nxt < len(chunks) and len(pending) < 2 * self.threads + 1:
+                f = self.client.submit(_dask_chunk, self.token, self.spec, scenario,
+                                       chunks[nxt], key=f"{self.token}-{scenario}-{nxt}",
+                                       pure=False)
+                pending.append(f)
+                self.inflight.add(f)
+                nxt += 1
+            f = pending.popleft()
+            out = f.result()
+            self.inflight.discard(f)
+            yield from out
+
+    def close(self) -> None:
+        """Release the run's data on the cluster (the client stays connected)."""
+        for f in self.inflight:
+            f.cancel()
+        self.inflight.clear()
+        if self.spec is None:  # closed already
+            return
+        self.spec.release()
+        self.spec = None
+        try:
+            self.client.run(_dask_forget, self.token)
+        except Exception as exc:  # noqa: BLE001 - a worker gone by now has nothing to forget
+            log.warning("Dask: could not clear the workers' runners (%s)", exc)
+
+    terminate = close
+
+
+
+#: seconds to wait for a ``--scheduler`` before giving up
+CONNECT_TIMEOUT_S = 10.0
+
+
+def connect(address: str, timeout_s: float | None = None):
+    """A ``distributed.Client`` connected to the scheduler at ``address``.
+
+    :raises InputError: ``--scheduler: cannot connect to <address> (<reason>)`` when no
+        scheduler answers within ``timeout_s`` (default :data:`CONNECT_TIMEOUT_S`)
+    """
+    from distributed import Client
+    from distributed.comm import resolve_address
+
+    timeout = CONNECT_TIMEOUT_S if timeout_s is None else timeout_s
+    try:
+        # a malformed address fails here, before a Client exists (a Client that fails to
+        # start hangs for 20 s in its finaliser at exit)
+        resolve_address(address)
+        return Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError("--scheduler", f"cannot connect to {address} ({reason})") from None
+
+
+#: Dask config of the workers a local cluster starts: without the nanny's default
+#: ``MALLOC_TRIM_THRESHOLD_=65536``, which turns off glibc's dynamic mmap threshold and was
+#: measured to make the chain 2x slower (every large temporary array mmap'ed afresh)
+WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+
+
+@contextmanager
+def local_cluster(workers: int):
+    """A client of a fresh local cluster: ``workers`` processes with one thread each, no
+    dashboard (:data:`WORKER_CONFIG`); closed on exit."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    # the scheduler serves HTTP even without a dashboard, by default on port 8787, with a
+    # warning when that is taken (another cluster): a free port on localhost instead
+    with dask.config.set(WORKER_CONFIG):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None,
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+    with cluster, Client(cluster, set_as_default=False) as client:
+        yield client
+

@@ -1,0 +1,274 @@
+"""Monte Carlo over topology realisations, serially or as tasks on Dask (``dask.distributed``).
+
+``run.realisations = n`` runs the config ``n`` times; realisation ``r`` is a complete run
+(:func:`veriloc_rt.sim.engine.run`) of :func:`realisation_config`: BS layout
+``topology.iteration + r`` and, for ``r >= 1``, its own seed derived from ``(seed,
+topology.iteration + r)``, so its trajectory (when generated), propagation, noise, adversary
+and key draws are new as well, and the realisations are independent samples. Realisation 0 is
+exactly the plain run of the config. Every draw still comes from the one config seed.
+
+Each realisation is one task and writes a single run's files into ``out/realisation_NNN/``
+(its ``run.json`` holds the realisation's resolved config: it reproduces alone). The numbers
+do not depend on where a realisation runs: serially (``workers=1``), on a local cluster
+(``workers > 1``) or on an existing one (``scheduler``; its workers must see ``out`` and
+any input files under the same paths). At the end ``out/`` gets:
+
+* ``metrics.json``: a single run's keys, each value the mean over the realisations where it
+  is defined, plus per scenario ``ci95`` (Student-t 95 % half-width, None below two
+  realisations) and ``realisations_defined`` with the same layout, and ``realisations``
+  (``position_error_m``: the mean of the realisations' percentiles, not a pooled percentile);
+* ``montecarlo.csv``: one row per realisation and scenario with the headline numbers;
+* ``montecarlo_detection_rates.png`` (mean correct-decision rates with CI bars),
+  ``outcomes.png`` (mean outcomes) and ``run.json``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+import time
+import uuid
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..config import Config
+from ..detectors.outcomes import DETECTORS, OUTCOMES
+from ..report import plots
+from ..rng import stream
+from .engine import Progress, run
+from .executors import check_workers, local_cluster, scheduler_client
+from .run_folder import check_resume, same_config, write_run_json
+
+log = logging.getLogger(__name__)
+
+__all__ = ["MonteCarloResults", "run_montecarlo", "realisation_config", "mean_ci",
+           "aggregate"]
+
+#: distributions the Monte Carlo ``run.json`` records besides a run's
+MC_VERSIONS = ("dask", "distributed")
+#: confidence level of the ``ci95`` intervals
+CI_LEVEL = 0.95
+#: metric groups of a scenario ({name: number or None}) that are averaged
+GROUPS = ("outcomes", "outcomes_encrypted", "correct_decision_rate", "position_error_m",
+          "benign_phase_false_alarm_rate")
+CSV_COLUMNS = ("realisation", "seed", "topology_iteration", "scenario", *OUTCOMES,
+               *(f"{o}_enc" for o in OUTCOMES), *DETECTORS,
+               "error_p50_m", "error_p95_m", "error_p999_m")
+
+
+@dataclass(frozen=True, eq=False)
+class MonteCarloResults:
+    """What a Monte Carlo run produced.
+
+    realisations : per realisation ``{"index", "seed", "topology_iteration", "dir", "metrics"}``
+    metrics : the aggregated ``metrics.json``
+    """
+
+    config: Config
+    out_dir: Path
+    realisations: list
+    metrics: dict
+    timing_s: dict = field(default_factory=dict)
+
+
+def realisation_config(cfg: Config, r: int) -> Config:
+    """The single-run config of realisation ``r`` (``r = 0``: ``cfg`` itself, one realisation)."""
+    k = cfg.topology.iteration + r
+    seed = cfg.seed if r == 0 else int(stream(cfg.seed, "realisation", k).integers(0, 2**63 - 1))
+    return replace(cfg, seed=seed, topology=replace(cfg.topology, iteration=k),
+                   run=replace(cfg.run, realisations=1))
+
+
+def mean_ci(values, level: float = CI_LEVEL) -> tuple[float | None, float | None, int]:
+    """Mean and Student-t half-width of ``values`` (None entries skipped) -> (mean, half, n).
+
+    half = t_{(1+level)/2, n-1} * s / sqrt(n) with the sample standard deviation s (ddof 1);
+    None when fewer than two values (mean None when none).
+    """
+    from scipy.stats import t
+
+    x = np.array([float(v) for v in values if v is not None], dtype=float)
+    n = int(x.size)
+    if n == 0:
+        return None, None, 0
+    mean = float(x.mean())
+    if n < 2:
+        return mean, None, 1
+    half = float(t.ppf(0.5 + level / 2.0, n - 1) * x.std(ddof=1) / math.sqrt(n))
+    return mean, half, n
+
+
+def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
+    """Mean and CI over the ``metrics.json`` dicts of the realisations (same scenarios)."""
+    n = len(per_realisation)
+    out: dict = {"scenarios": {}, "realisations": n, "confidence_level": level}
+    for s in per_realisation[0]["scenarios"]:
+        ms = [m["scenarios"][s] for m in per_realisation]
+        agg: dict = {}
+        for key in ("num_points", "num_evaluated"):
+            vals = [m.get(key, 0) for m in ms]
+            agg[key] = vals[0] if len(set(vals)) == 1 else float(np.mean(vals))
+        ci, defined = {}, {}
+        for g in GROUPS:
+            if not any(m.get(g) for m in ms):
+                continue
+            names = list(dict.fromkeys(k for m in ms for k in (m.get(g) or {})))
+            agg[g], ci[g], defined[g] = {}, {}, {}
+            for k in names:
+                agg[g][k], ci[g][k], defined[g][k] = mean_ci([(m.get(g) or {}).get(k)
+                                                              for m in ms], level)
+        agg["realisations"] = n
+        agg["ci95"] = ci
+        agg["realisations_defined"] = defined
+        out["scenarios"][s] = agg
+    return out
+
+
+def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | None = None) -> dict:
+    """One realisation (a task): its metrics.json content. With ``resume``, a realisation
+    already complete with this config is read back; a partial one continues."""
+    out = Path(out_dir)
+    info = out / "run.json"
+    if resume and info.exists():
+        if (json.loads(info.read_text()).get("status") == "complete" and same_config(info, cfg)
+                and (out / "metrics.json").exists()):
+            log.info("%s: complete, kept", out)
+            return json.loads((out / "metrics.json").read_text())
+        return run(cfg, out, progress=progress, resume=True).metrics
+    return run(cfg, out, progress=progress).metrics
+
+
+def run_montecarlo(cfg: Config, out_dir: str | Path, progress: Progress | None = None,
+                   workers: int = 1, scheduler=None, resume: bool = False) -> MonteCarloResults:
+    """Run the ``cfg.run.realisations`` realisations and aggregate them (module docstring).
+
+    :param progress: ``progress(stage, done, total)``: per scenario and point when serial,
+        realisations done on Dask
+    :param workers: 1: one realisation after the other here; more: a local Dask cluster of
+        that many processes (at most one per realisation)
+    :param scheduler: an existing Dask cluster instead: address or connected
+        ``distributed.Client`` (not together with ``workers > 1``)
+    :param resume: keep the complete realisations in ``out_dir`` and continue the others
+    """
+    check_workers(workers, scheduler)
+    with scheduler_client(scheduler) as client:  # a bad address fails now, before any work
+        return _montecarlo(cfg, Path(out_dir).resolve(), progress, workers, client, resume)
+
+
+def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int, client,
+                resume: bool) -> MonteCarloResults:
+    n = cfg.run.realisations
+    if resume:
+        check_resume(out, cfg)
+    width = max(3, len(str(n - 1)))
+    reals = [{"index": r, "config": realisation_config(cfg, r),
+              "dir": out / f"realisation_{r:0{width}d}"} for r in range(n)]
+    t0 = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    write_run_json(out, cfg, "running", {}, _listing(reals), versions=MC_VERSIONS)
+    if client is not None:
+        metrics = _on_dask(client, reals, resume, progress)
+    elif workers > 1:
+        with local_cluster(min(workers, n)) as own:
+            metrics = _on_dask(own, reals, resume, progress)
+    else:
+        metrics = []
+        for real in reals:
+            cb = ((lambda s, d, t, r=real["index"]: progress(f"{r + 1}/{n} {s}", d, t))
+                  if progress else None)
+            metrics.append(_realisation(real["config"], str(real["dir"]), resume, cb))
+            log.info("realisation %d of %d done", real["index"] + 1, n)
+    agg = aggregate(metrics)
+    timing = _timing(metrics, time.perf_counter() - t0)
+    timing["workers"] = (sum(client.nthreads().values()) if client is not None
+                         else min(workers, n))
+    if client is not None:
+        timing["scheduler"] = client.scheduler.address
+    agg["timing_s"] = timing
+    agg["propagation_model"] = cfg.propagation.model
+    for real, m in zip(reals, metrics):
+        real["metrics"] = m
+    (out / "metrics.json").write_text(json.dumps(agg, indent=2))
+    write_csv(out / "montecarlo.csv", reals)
+    _write_plots(out, cfg, agg)
+    write_run_json(out, cfg, "complete", timing, _listing(reals), versions=MC_VERSIONS)
+    summary = [{"index": real["index"], "seed": real["config"].seed,
+                "topology_iteration": real["config"].topology.iteration, "dir": real["dir"],
+                "metrics": real["metrics"]} for real in reals]
+    return MonteCarloResults(cfg, out, summary, agg, timing)
+
+
+def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None) -> list[dict]:
+    """Every realisation as one task on ``client``'s cluster -> metrics, in realisation order."""
+    from distributed import as_completed
+
+    tag = uuid.uuid4().hex[:8]
+    futures = [client.submit(_realisation, real["config"], str(real["dir"]), resume,
+                             key=f"veriloc-realisation-{real['index']}-{tag}", pure=False)
+               for real in reals]
+    index = {f.key: real["index"] for f, real in zip(futures, reals)}
+    metrics: list = [None] * len(reals)
+    if progress:
+        progress("realisations", 0, len(reals))
+    try:
+        for done, f in enumerate(as_completed(futures, loop=client.loop), 1):
+            metrics[index[f.key]] = f.result()
+            log.info("realisation %d done (%d of %d)", index[f.key] + 1, done, len(reals))
+            if progress:
+                progress("realisations", done, len(reals))
+    except BaseException:
+        client.cancel(futures)
+        raise
+    return metrics
+
+
+def _timing(metrics: list[dict], wall_s: float) -> dict:
+    """Stage times summed over the realisations; ``total``: the Monte Carlo's wall time."""
+    out: dict = {}
+    for m in metrics:
+        for k, v in m.get("timing_s", {}).items():
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and k != "workers":
+                out[k] = out.get(k, 0.0) + float(v)
+    out["realisations_total"] = out.pop("total", 0.0)
+    out["total"] = wall_s
+    return out
+
+
+def _listing(reals: list[dict]) -> dict:
+    """The ``realisations`` entry of the Monte Carlo ``run.json``."""
+    return {"realisations": [{"index": real["index"], "seed": real["config"].seed,
+                              "topology_iteration": real["config"].topology.iteration,
+                              "dir": real["dir"].name} for real in reals]}
+
+
+def _f(v) -> str:
+    return "" if v is None else repr(float(v))
+
+
+def write_csv(path: Path, reals: list[dict]) -> Path:
+    """``montecarlo.csv``: one row per realisation and scenario (:data:`CSV_COLUMNS`)."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(CSV_COLUMNS)
+        for real in reals:
+            for s, m in real["metrics"]["scenarios"].items():
+                o, e = m.get("outcomes") or {}, m.get("outcomes_encrypted") or {}
+                rates, err = m.get("correct_decision_rate") or {}, m.get("position_error_m") or {}
+                c = real["config"]
+                w.writerow([real["index"], c.seed, c.topology.iteration, s,
+                            *(_f(o.get(k)) for k in OUTCOMES), *(_f(e.get(k)) for k in OUTCOMES),
+                            *(_f(rates.get(d)) for d in DETECTORS),
+                            *(_f(err.get(k)) for k in ("p50", "p95", "p999"))])
+    return path
+
+
+def _write_plots(out: Path, cfg: Config, agg: dict) -> None:
+    n = agg["realisations"]
+    plots.plot_rates_ci(agg, out / "montecarlo_detection_rates.png",
+                  title=f"correct decisions, mean and 95 % CI over {n} realisations")
+    plots.plot_outcomes(agg, out / "outcomes.png", title=f"outcomes, mean over {n} realisations",
+                        threshold_m=cfg.run.success_threshold_m)

@@ -1,0 +1,251 @@
+"""One scenario over the trajectory: chain calls, the five detectors and the outcome per point.
+
+:class:`ScenarioRunner` is configured once per run (config, geometry, propagation, keys) and
+called per scenario; it yields one :class:`PointRow` per trajectory point, which the engine
+writes to the scenario's CSV as soon as it exists.
+
+Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted``):
+
+1. the adversary transmits only in the attack window (``run.attack_points``) and only in an
+   attack scenario; its grid comes from :class:`~veriloc_rt.attacks.adversary.AdversarySignal`;
+2. the chain runs with the noise stream ``stream(seed, "noise", mode, i)``, the same in every
+   scenario (common random numbers: a benign point gives the same chain result in every
+   scenario, so it is computed once per run and reused); the adversary's own draws come from
+   ``stream(seed, "adversary", scenario, mode, i)``;
+3. detectors (standard PRS only, as the paper evaluates them):
+
+   * HMAC: :class:`TagDetector` on the chain's tag checks (``security.tag_scheme`` should be
+     'hmac'); DigSig: the same rule on a second, DS-tagged chain call with the same noise and
+     adversary draws (``run.digsig='separate'``; it keeps the first call's timing and decodes
+     its own tags: ``PositioningChain(estimates=...)``), or on the HMAC run's checks ('shared');
+   * ABSA: the AoA per BS, resolved against and compared with the azimuth from the *last
+     validated position* (the Kalman tracker's position after its last accepted fix; before the
+     first one, the current DL fix);
+   * Handshake: DL fix against UL fix; Tracking: the Kalman tracker on the DL fix.
+
+4. outcome: ``success`` (fix ok and horizontal error <= ``run.success_threshold_m``),
+   ``large_error`` (fix ok, error above), ``service_failure`` (no fix: fewer than 3 BSs heard or
+   the solver failed).
+
+Resume: the tracker (the only state) is rebuilt by replaying the saved rows' DL fixes
+(:meth:`ScenarioRunner.replay`); the CSV stores them at full float precision, so the replay is
+exact and a resumed run ends with the same rows as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+
+import numpy as np
+
+from ..config import Config
+from ..detectors import ABSADetector, HandshakeDetector, KalmanTracker, TagDetector
+from ..detectors.outcomes import PointRow, outcome_of
+from ..phy.receiver.chain import STAGES, ChainResult, PositioningChain
+from ..rng import stream
+from ..attacks.adversary import AdversarySignal
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ScenarioRunner"]
+
+
+class ScenarioRunner:
+    """Chains, adversary and detectors of one run.
+
+    :param cfg: run config; geometry, propagation: from the engine; keys: by BS id
+    """
+
+    def __init__(self, cfg: Config, geometry, propagation, keys):
+        self.cfg, self.geo, self.prop = cfg, geometry, propagation
+        self.window = cfg.run.attack_points(geometry.num_points)
+        nbs = cfg.nr.num_bs
+        mk = dict(nr=cfg.nr, channel=cfg.channel, ue_array=cfg.propagation.ue_array,
+                  carrier_frequency_hz=cfg.propagation.carrier_frequency_hz, keys=keys)
+        sec = cfg.security
+        self.chains = {"standard": PositioningChain(security=sec, receiver=cfg.receiver, **mk)}
+        if cfg.run.evaluate_encrypted:  # outcomes only: no uplink, AoA or tag check needed
+            enc = dataclasses.replace(sec, encrypted=(True,) * nbs)
+            rx = dataclasses.replace(cfg.receiver, uplink=False)
+            self.chains["encrypted"] = PositioningChain(security=enc, receiver=rx, fix_only=True, **mk)
+        self.ds_chain = None
+        if cfg.run.digsig == "separate" and sec.tag_scheme != "ds":
+            ds = dataclasses.replace(sec, tag_scheme="ds")
+            rx = dataclasses.replace(cfg.receiver, uplink=False)
+            self.ds_chain = PositioningChain(security=ds, receiver=rx, **mk)
+        self.adversary = {m: AdversarySignal(cfg, c) for m, c in self.chains.items()}
+        if self.ds_chain is not None:
+            self.adversary["ds"] = AdversarySignal(cfg, self.ds_chain)
+        d = cfg.detectors
+        self.hmac, self.digsig = TagDetector(d.hmac), TagDetector(d.digsig)
+        self.absa, self.handshake = ABSADetector(d.absa), HandshakeDetector(d.handshake)
+        self.tracker = KalmanTracker(d.tracking)
+        #: chain results by cache key: (key, i) benign, shared by the scenarios (common random
+        #: numbers); (key, scenario, i) attack points computed by a worker, used once
+        self._benign: dict[tuple, ChainResult] = {}
+        #: seconds: adversary signals, chain calls (total and by stage, :data:`STAGES`), detectors
+        self.timing = {"adversary": 0.0, "chain": 0.0, **dict.fromkeys(STAGES, 0.0), "detectors": 0.0}
+        self._last_valid: np.ndarray | None = None
+
+    # -- state -------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Fresh detector state for a new scenario."""
+        self.tracker.reset()
+        self._last_valid = None
+
+    def _track(self, est_xy: np.ndarray, dt: float | None) -> bool:
+        z = est_xy if np.all(np.isfinite(est_xy)) else None
+        v = self.tracker(z, dt)
+        if v.accepted:
+            self._last_valid = v.position.copy()
+        return v.valid
+
+    def replay(self, rows: list[PointRow]) -> None:
+        """Rebuild the detector state from saved rows (resume)."""
+        self.reset()
+        prev = None
+        for r in rows:
+            self._track(r.est_xy, self._dt(prev, r.index))
+            prev = r.index
+
+    def _dt(self, prev: int | None, i: int) -> float | None:
+        if prev is None:
+            return None
+        t = self.geo.ue.t
+        return float(t[i] - t[prev]) if t[i] > t[prev] else None
+
+    # -- per point ---------------------------------------------------------------------------
+    # -- chain results, local or from worker processes --------------------------------------
+    def _keys(self) -> list[tuple[str, PositioningChain, int]]:
+        out = [("standard", self.chains["standard"], 0)]
+        if self.ds_chain is not None:
+            out.append(("ds", self.ds_chain, 0))
+        if "encrypted" in self.chains:
+            out.append(("encrypted", self.chains["encrypted"], 1))
+        return out
+
+    def _ck(self, key: str, scenario: str, i: int) -> tuple:
+        attack = scenario != "none" and bool(self.window[i])
+        return (key, scenario, i) if attack else (key, i)
+
+    def needs_chains(self, scenario: str, i: int) -> bool:
+        """Whether point ``i`` of ``scenario`` still needs chain calls (not cached)."""
+        return any(self._ck(k, scenario, i) not in self._benign for k, _, _ in self._keys())
+
+    def compute_chains(self, scenario: str, i: int) -> dict:
+        """Every chain result point ``i`` of ``scenario`` needs, by cache key (for workers);
+        in the attack window also those of the run's later attack scenarios, computed here
+        together: they share the serving BSs' signal, noise and uplink, which each chain keeps
+        from one call to the next (:meth:`PositioningChain._benign`). The engine holds them
+        until their scenario comes."""
+        out: dict = {}
+        for sc in self._scenarios_at(scenario, i):
+            for k, c, m in self._keys():   # 'standard' first: the DS chain reuses its timing
+                ck = self._ck(k, sc, i)
+                if ck in out or (sc != scenario and ck in self._benign):
+                    continue
+                std = out.get(self._ck("standard", sc, i)) if k == "ds" else None
+                out[ck] = self.chain_result(k, c, sc, m, i, std)
+        return out
+
+    def _scenarios_at(self, scenario: str, i: int) -> list[str]:
+        """The scenarios :meth:`compute_chains` evaluates at point ``i`` of ``scenario``."""
+        out = [scenario]
+        if self.window[i] and scenario in self.cfg.run.scenarios:
+            later = self.cfg.run.scenarios[self.cfg.run.scenarios.index(scenario) + 1:]
+            out += [s for s in later if s != "none"]
+        return out
+
+    def chain_work(self, scenario: str, i: int) -> int:
+        """How many scenarios' chains point ``i`` of ``scenario`` still computes (for progress)."""
+        return sum(any(self._ck(k, sc, i) not in self._benign for k, _, _ in self._keys())
+                   for sc in self._scenarios_at(scenario, i))
+
+    def worker_chains(self, scenario: str, i: int) -> tuple[int, dict, dict]:
+        """:meth:`compute_chains` in an executor's worker: ``(i, results, timing)``, the timing
+        being this call's seconds by :attr:`timing` key. The worker keeps no cache (the engine's
+        runner does, from :meth:`store_chains`)."""
+        before = dict(self.timing)
+        res = self.compute_chains(scenario, i)
+        self.clear_cache()
+        return i, res, {k: self.timing[k] - before[k] for k in before}
+
+    def clear_cache(self) -> None:
+        """Forget every cached chain result."""
+        self._benign.clear()
+
+    def store_chains(self, results: dict) -> None:
+        """Results from :meth:`compute_chains` (run elsewhere) for the next :meth:`point` calls."""
+        self._benign.update(results)
+
+    def chain_result(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int,
+                     estimates: ChainResult | None = None) -> ChainResult:
+        """The result of ``chain`` (cache key ``key``: 'standard', 'ds', 'encrypted') at point
+        ``i`` of ``scenario`` with PRS mode ``mode`` (0 standard, 1 encrypted); benign results
+        come from and go to the cache (:meth:`clear_cache`), attack results are used once.
+        ``estimates``: the DS chain reuses the standard call's timing."""
+        attack = scenario != "none" and bool(self.window[i])
+        ck = self._ck(key, scenario, i)
+        if ck in self._benign:
+            # benign results are shared by every scenario; attack results come from workers
+            return self._benign[ck] if not attack else self._benign.pop(ck)
+        p = self.prop
+        sig = None
+        if attack:
+            t = time.perf_counter()
+            sig = self.adversary[key](scenario, i, i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
+                                      self.geo.ue.pos[i], stream(self.cfg.seed, "adversary",
+                                                                 _SCEN[scenario], mode, i),
+                                      adv_ue=p.adv_ue)
+            self.timing["adversary"] += time.perf_counter() - t
+        t = time.perf_counter()
+        before = dict(chain.stage_s)
+        res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=i,
+                    adv_ue=p.adv_ue if attack else None, adversary_signal=sig, estimates=estimates)
+        self.timing["chain"] += time.perf_counter() - t
+        for k in STAGES:
+            self.timing[k] += chain.stage_s[k] - before[k]
+        if not attack:
+            self._benign[ck] = res
+        return res
+
+    def point(self, scenario: str, i: int, prev: int | None) -> PointRow:
+        """Evaluate point ``i`` of ``scenario`` (``prev``: the previous evaluated point)."""
+        cfg = self.cfg
+        true_xy = self.geo.ue.pos[i, :2]
+        res = self.chain_result("standard", self.chains["standard"], scenario, 0, i)
+        est, err, out = self._fix(res, true_xy)
+        ds = self.chain_result("ds", self.ds_chain, scenario, 0, i, res) if self.ds_chain is not None else res
+        t = time.perf_counter()
+        v = {"HMAC": self.hmac(res.tags_valid, res.detected).valid,
+             "DigSig": self.digsig(ds.tags_valid, ds.detected).valid}
+        bs_pos = self.prop.bs_ue.tx_pos[i]
+        ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
+        ref_az = self.absa.reference_azimuth(bs_pos, ref)
+        # no AoA: NaN; no reference: unresolvable, and ABSA does not check that BS anyway
+        az = np.array([float(a.resolve(r)[0]) if (a is not None and np.isfinite(r)) else np.nan
+                       for a, r in zip(res.aoa, ref_az)])
+        v["ABSA"] = self.absa(az, bs_pos, reference_position=ref).valid
+        ul = res.uplink.position if res.uplink is not None else None
+        v["Handshake"] = self.handshake(res.position.position if res.position.ok else None,
+                                        ul.position if (ul is not None and ul.ok) else None).valid
+        v["Tracking"] = self._track(est, self._dt(prev, i))
+        self.timing["detectors"] += time.perf_counter() - t
+        row = PointRow(i, float(self.geo.ue.t[i]), scenario != "none" and bool(self.window[i]),
+                       v, true_xy.copy(), est, err, out)
+        if "encrypted" in self.chains:
+            r2 = self.chain_result("encrypted", self.chains["encrypted"], scenario, 1, i)
+            row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
+        return row
+
+    def _fix(self, res: ChainResult, true_xy: np.ndarray) -> tuple[np.ndarray, float, str]:
+        if not res.position.ok:
+            return np.full(2, np.nan), float("nan"), "service_failure"
+        est = np.asarray(res.position.position[:2], dtype=float).copy()
+        err = float(np.linalg.norm(est - true_xy))
+        return est, err, outcome_of(True, err, self.cfg.run.success_threshold_m)
+
+
+_SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}

@@ -1,0 +1,93 @@
+"""The geometry of one run: scene, BS layout, UE and adversary trajectories, serving sets.
+
+Everything here is cheap and exact for a seed; the expensive part (propagation) consumes it.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config import Config
+from ..errors import InputError
+from ..rng import stream
+from .scene.canyon import UrbanCanyon, urban_canyon
+from .scene.export import scene_bounds, write_scene
+from .scene.external import MeshScene
+from .topology import HexLayout, hex_layout
+from .trajectory import (Trajectory, check_points, follower, generate_street_trajectory,
+                         load_csv_trajectory)
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Scene and positions of one run.
+
+    bs_pos : [num_bs, 3] float64, m (every BS that serves the UE at some point)
+    serving : [num_points, 3] int64, ids into ``bs_pos``; the first is the RSTD reference
+    """
+
+    scene_xml: Path
+    scene: UrbanCanyon | MeshScene
+    full_canyon: UrbanCanyon | None
+    layout: HexLayout
+    bs_pos: np.ndarray
+    serving: np.ndarray
+    ue: Trajectory
+    adversary: Trajectory
+
+    @property
+    def num_points(self) -> int:
+        return self.ue.num_points
+
+
+def build_trajectory(cfg: Config, scene) -> Trajectory:
+    """The UE trajectory of ``cfg`` (generated on the canyon's streets or read from CSV)."""
+    tcfg = cfg.trajectory
+    if tcfg.source == "generator":
+        if not isinstance(scene, UrbanCanyon):
+            raise InputError("trajectory.source", "the street generator needs the procedural "
+                             "canyon; give a CSV trajectory for an external scene")
+        ue = generate_street_trajectory(tcfg, scene, stream(cfg.seed, "trajectory"))
+        source = "trajectory"
+    else:
+        ue = load_csv_trajectory(tcfg.source, tcfg)
+        source = tcfg.source
+    check_points(scene, ue.pos, "trajectory", source)
+    return ue
+
+
+def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
+    """Build (and write, for the canyon) the scene, the layout and both trajectories.
+
+    :param scene_dir: where the canyon's XML + PLY files go
+    """
+    full = None
+    if cfg.scene.is_canyon:
+        full = urban_canyon(cfg.scene, stream(cfg.seed, "scene-heights"))
+        scene = full
+    else:
+        scene = MeshScene.from_xml(cfg.scene.source)
+    ue = build_trajectory(cfg, scene)
+    adv = follower(ue, cfg.trajectory.adversary_lag_points,
+                   cfg.trajectory.adversary_min_separation_m)
+    check_points(scene, adv.pos, "adversary", "trajectory.adversary_lag_points")
+    layout = hex_layout(cfg.topology, stream(cfg.seed, "topology", cfg.topology.iteration))
+    bs_pos, serving = layout.serving(ue.pos[:, :2])
+    if full is not None:
+        keep_near = np.concatenate([bs_pos[:, :2], ue.densified_xy(), adv.pos[:, :2]])
+        cropped = full.crop(keep_near, cfg.scene.margin_m)
+        bounds = scene_bounds(cropped, np.concatenate([bs_pos[:, :2], ue.pos[:, :2]]), pad=20.0)
+        xml = write_scene(cropped, scene_dir, bounds)
+        log.info("canyon: %d of %d buildings within %.0f m of the BSs and the trajectory",
+                 cropped.num_buildings, full.num_buildings, cfg.scene.margin_m)
+        scene = cropped
+    else:
+        xml = Path(cfg.scene.source)
+    return Geometry(scene_xml=Path(xml), scene=scene, full_canyon=full, layout=layout,
+                    bs_pos=bs_pos, serving=serving, ue=ue, adversary=adv)

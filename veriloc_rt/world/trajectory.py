@@ -1,0 +1,245 @@
+"""UE trajectories (street-following generator or CSV) and the adversary that follows them.
+
+A trajectory is sampled at fixed times but stored with its path (a polyline) and the arc
+length at each sample, so the adversary can follow *the same path* a number of points behind.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config import TrajectoryConfig
+from ..errors import InputError, bad_value
+
+_DIRS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # E, N, W, S
+_TURN_SPEED = 4.0  # m/s through a corner (about 15 km/h)
+_DS = 0.25  # m, arc-length step of the kinematic integration
+_STOP_LINE = 6.0  # m before the intersection centre where a stopping vehicle waits
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A sampled path.
+
+    t : [num_points] float64, s; pos : [num_points, 3] float64, m; vel : [num_points, 3] m/s
+    s : [num_points] float64, m (arc length along ``path``)
+    path : [num_vertices, 3] float64, m (polyline the samples lie on)
+    """
+
+    t: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    s: np.ndarray
+    path: np.ndarray
+
+    @property
+    def num_points(self) -> int:
+        return len(self.t)
+
+    def head(self, n: int) -> "Trajectory":
+        return Trajectory(self.t[:n], self.pos[:n], self.vel[:n], self.s[:n], self.path)
+
+    def at_arclength(self, s: np.ndarray) -> np.ndarray:
+        """Positions at arc lengths ``s`` [m]; before the start, extend the first segment back."""
+        seg = np.diff(self.path, axis=0)
+        seg_len = np.linalg.norm(seg, axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+        s = np.asarray(s, dtype=float)
+        out = np.stack([np.interp(s, cum, self.path[:, i]) for i in range(3)], axis=-1)
+        before = s < 0
+        if np.any(before):
+            first = np.argmax(seg_len > 0)
+            d = seg[first] / seg_len[first]
+            out[before] = self.path[0] + s[before, None] * d
+        return out
+
+    def densified_xy(self, step: float = 2.0) -> np.ndarray:
+        """Points along the covered part of the path at most ``step`` apart. -> [n, 2]"""
+        s = np.arange(min(self.s.min(), 0.0), self.s.max() + step, step)
+        return self.at_arclength(s)[:, :2]
+
+
+def follower(ue: Trajectory, lag_points: int, min_separation: float) -> Trajectory:
+    """The adversary: on the UE's exact path, ``lag_points`` samples behind, never closer than
+    ``min_separation`` along the path (it queues behind a stopped UE). Before the UE's first
+    sample it waits behind the start on the first street."""
+    k = np.arange(ue.num_points)
+    lagged = np.where(k >= lag_points, ue.s[np.maximum(k - lag_points, 0)], ue.s[0] - min_separation)
+    s_adv = np.minimum(lagged, ue.s - min_separation)
+    pos = ue.at_arclength(s_adv)
+    pos[:, 2] = ue.pos[:, 2]
+    vel = _velocity(ue.t, pos)
+    return Trajectory(ue.t.copy(), pos, vel, s_adv, ue.path)
+
+
+def _velocity(t: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    if len(t) < 2:
+        return np.zeros_like(pos)
+    return np.gradient(pos, t, axis=0)
+
+
+def generate_street_trajectory(cfg: TrajectoryConfig, canyon, rng: np.random.Generator) -> Trajectory:
+    """Drive along the canyon's street centre lines.
+
+    Route: from the intersection nearest the origin, at each intersection go straight or turn
+    (``turn_probability``), staying inside ``region_m``. Speed: a cruise speed per block drawn in
+    [min_speed, max_speed], at most 4 m/s through turns, full stops (``stop_probability``, dwell
+    up to ``max_stop_s``) at the stop line 6 m before an intersection, acceleration and braking
+    limited to ``accel_mps2``.
+    """
+    pitch = canyon.pitch
+    nodes = canyon.street_nodes(cfg.region_m)
+    if len(nodes) < 4:
+        raise bad_value("trajectory.region_m", cfg.region_m,
+                        f"a region holding at least 2x2 intersections (block pitch {pitch} m)")
+    lim = np.abs(nodes).max()
+    total_time = (cfg.num_points - 1) * cfg.dt_s
+    need = total_time * cfg.max_speed_mps + 2 * pitch
+    # --- route: a sequence of intersections ------------------------------------------------
+    cur = np.zeros(2)
+    heading = int(rng.integers(4))
+    route = [cur.copy()]
+    turns = [False]
+    length = 0.0
+    while length < need:
+        options = []
+        if rng.uniform() < cfg.turn_probability:
+            options = [(heading + 1) % 4, (heading + 3) % 4]
+            rng.shuffle(options)
+        options += [heading, (heading + 1) % 4, (heading + 3) % 4, (heading + 2) % 4]
+        for h in options:
+            nxt = cur + pitch * _DIRS[h]
+            if np.all(np.abs(nxt) <= lim + 1e-6):
+                break
+        turns[-1] = h != heading and len(route) > 1
+        heading, cur = h, nxt
+        route.append(cur.copy())
+        turns.append(False)
+        length += pitch
+    route = np.array(route)
+    # --- speed limit along the arc length ----------------------------------------------------
+    n_nodes = len(route)
+    s_grid = np.arange(0.0, (n_nodes - 1) * pitch + _DS / 2, _DS)
+    cruise = rng.uniform(cfg.min_speed_mps, cfg.max_speed_mps, n_nodes - 1)
+    cruise = np.maximum(cruise, 0.5)
+    vmax = cruise[np.minimum((s_grid // pitch).astype(int), n_nodes - 2)]
+    stops = rng.uniform(size=n_nodes) < cfg.stop_probability
+    stops[0] = True
+    dwell = np.where(stops, rng.uniform(1.0, max(cfg.max_stop_s, 1.0), n_nodes), 0.0)
+    dwell[0] = 0.0
+    node_idx = np.round(np.arange(n_nodes) * pitch / _DS).astype(int)
+    node_idx = np.minimum(node_idx, len(s_grid) - 1)
+    vmax[node_idx[np.array(turns)]] = np.minimum(vmax[node_idx[np.array(turns)]], _TURN_SPEED)
+    # a stopping vehicle waits at the stop line, short of the intersection (not at the start)
+    stop_idx = node_idx.copy()
+    stop_idx[1:] = np.maximum(node_idx[1:] - int(round(_STOP_LINE / _DS)), 0)
+    vmax[stop_idx[stops]] = 0.0
+    # acceleration limits: forward then backward pass on v^2
+    v2 = vmax ** 2
+    for i in range(1, len(v2)):
+        v2[i] = min(v2[i], v2[i - 1] + 2 * cfg.accel_mps2 * _DS)
+    for i in range(len(v2) - 2, -1, -1):
+        v2[i] = min(v2[i], v2[i + 1] + 2 * cfg.accel_mps2 * _DS)
+    v = np.sqrt(v2)
+    vmid = np.maximum(0.5 * (v[1:] + v[:-1]), 1e-3)
+    dt_steps = _DS / vmid
+    # dwell times are added on arrival at a stop node
+    arrive_dwell = np.zeros(len(s_grid))
+    arrive_dwell[stop_idx[stops]] = dwell[stops]
+    t_grid = np.concatenate([[0.0], np.cumsum(dt_steps)]) + np.cumsum(arrive_dwell)
+    # time -> arc length: during a dwell t advances while s stays (duplicate s entries)
+    t_aug = np.concatenate([t_grid - arrive_dwell, t_grid])
+    s_aug = np.concatenate([s_grid, s_grid])
+    order = np.lexsort((s_aug, t_aug))
+    t_aug, s_aug = t_aug[order], s_aug[order]
+    t = np.arange(cfg.num_points) * cfg.dt_s
+    if t[-1] > t_aug[-1]:
+        raise RuntimeError("route too short for the requested duration")  # need covers this
+    s = np.interp(t, t_aug, s_aug)
+    path = np.concatenate([route, np.full((n_nodes, 1), cfg.ue_height_m)], axis=1)
+    traj = Trajectory(t, np.zeros((len(t), 3)), np.zeros((len(t), 3)), s, path)
+    pos = traj.at_arclength(s)
+    return Trajectory(t, pos, _velocity(t, pos), s, path)
+
+
+def load_csv_trajectory(path: str | Path, cfg: TrajectoryConfig) -> Trajectory:
+    """Read ``t,x,y[,z]`` (header row required; z defaults to ``ue_height_m``).
+
+    :raises InputError: naming the file, row and column for anything unusable
+    """
+    path = Path(path)
+    field = "trajectory.source"
+    if not path.is_file():
+        raise InputError(field, f"trajectory file {str(path)!r} does not exist")
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        raise InputError(str(path), "empty file, expected a header t,x,y[,z] and rows")
+    header = [h.strip().lower() for h in rows[0]]
+    if header[:3] != ["t", "x", "y"] or header[3:] not in ([], ["z"]):
+        raise InputError(str(path), f"header {','.join(rows[0])!r}, expected 't,x,y' or 't,x,y,z'")
+    data = []
+    for i, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"{path}:{i}", f"{len(row)} columns, expected {len(header)}")
+        try:
+            vals = [float(c) for c in row]
+        except ValueError:
+            raise InputError(f"{path}:{i}", f"non-numeric value in {row!r}") from None
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError(f"{path}:{i}", f"non-finite value in {row!r}")
+        data.append(vals)
+    if len(data) < 2:
+        raise InputError(str(path), f"{len(data)} data rows, expected at least 2")
+    arr = np.array(data)[: cfg.num_points]
+    t = arr[:, 0]
+    if np.any(np.diff(t) <= 0):
+        bad = int(np.argmax(np.diff(t) <= 0)) + 3
+        raise InputError(f"{path}:{bad}", "time t must increase strictly")
+    z = arr[:, 3] if arr.shape[1] == 4 else np.full(len(t), cfg.ue_height_m)
+    pos = np.stack([arr[:, 1], arr[:, 2], z], axis=-1)
+    step = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(step)])
+    keep = np.concatenate([[True], step > 0])  # polyline without repeated vertices
+    return Trajectory(t, pos, _velocity(t, pos), s, pos[keep])
+
+
+def check_points(scene, pos: np.ndarray, what: str, source: str) -> None:
+    """Reject points inside a building or outside the scene with one clear error.
+
+    :param scene: an :class:`~veriloc_rt.world.scene.canyon.UrbanCanyon` or
+        :class:`~veriloc_rt.world.scene.external.MeshScene`
+    """
+    pos = np.asarray(pos, dtype=float)
+    outside = ~scene.inside_extent(pos[:, :2])
+    if np.any(outside):
+        k = int(np.argmax(outside))
+        raise InputError(source, f"{what} point {k} at ({pos[k, 0]:.1f}, {pos[k, 1]:.1f}) m is "
+                         "outside the scene")
+    if hasattr(scene, "pitch"):
+        inside = scene.inside_building(pos[:, :2]) & (pos[:, 2] < _height_at(scene, pos))
+    else:
+        inside = scene.inside_building(pos)
+    if np.any(inside):
+        k = int(np.argmax(inside))
+        raise InputError(source, f"{what} point {k} at ({pos[k, 0]:.1f}, {pos[k, 1]:.1f}, "
+                         f"{pos[k, 2]:.1f}) m is inside a building; points must lie in streets")
+
+
+def _height_at(canyon, pos: np.ndarray) -> np.ndarray:
+    """Roof height of the block under each point (0 in streets)."""
+    fp = canyon.footprints
+    h = np.zeros(len(pos))
+    for start in range(0, len(pos), 1024):
+        p = pos[start:start + 1024, None, :2]
+        inside = ((p[..., 0] >= fp[:, 0]) & (p[..., 0] <= fp[:, 2])
+                  & (p[..., 1] >= fp[:, 1]) & (p[..., 1] <= fp[:, 3]))
+        h[start:start + 1024] = np.where(inside, canyon.heights, 0.0).max(axis=1, initial=0.0)
+    return h
