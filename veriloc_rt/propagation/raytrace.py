@@ -331,7 +331,7 @@ def build_cir(raw: RawPaths, shape: tuple[int, int], tx_index: np.ndarray, tx_po
 def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None = None,
           cache_dir: str | Path | None = "default",
           adversary_points: np.ndarray | None = None) -> Propagation:
-    """Ray-trace every link of ``geometry`` (a :class:`~veriloc_rt.scenario.Geometry`).
+    """Ray-trace every link of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
 
     :param adversary_points: [num_points] bool, points at which the adversary transmits or
         listens (default: all); adversary links elsewhere are left empty (``NO_TX``)

@@ -328,8 +328,8 @@ def _geometry(cfg: Config, scene_root: Path):
 def _trace(cfg: Config, geometry, repeats: int = 2):
     """The serving links' CIRs and the warm cost per link: the fastest of ``repeats`` identical
     traces (the first of a setting also compiles its Dr.Jit kernels and, in a new process,
-    starts the LLVM back end: measured 0.045 s/link cold vs 0.03 warm at depth 3, 360 links;
-    the trace is deterministic, so every repeat gives the same CIRs)."""
+    starts the LLVM back end, docs/performance.md; the trace is deterministic, so every repeat
+    gives the same CIRs)."""
     from ..propagation.raytrace import trace
 
     p = geometry.num_points
