@@ -63,7 +63,7 @@ MAX_SOURCES_PER_CALL = 150
 
 #: Traced (source, target) pairs per call: Sionna sizes its candidate buffer by
 #: max_candidates_per_source x pairs
-MAX_PAIRS_PER_CALL = 1024
+MAX_PAIRS_PER_CALL = 256
 
 #: Share of a call's traced pairs that must be wanted when the unwanted ones are dropped before
 #: refinement (their cost is the visibility tests of the shared rays)
