@@ -20,41 +20,36 @@ import sys
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
 from .errors import InputError
 
 
 class ProgressBar:
-    """One-line progress bar with ETA on stderr (redraws at most 5 times a second)."""
+    """The library's progress callback ``(label, done, total)`` as one tqdm bar per stage on
+    stderr (redrawn on a terminal; elsewhere, e.g. CI logs, updated every 10 s)."""
 
-    def __init__(self, stream=sys.stderr, width: int = 30):
-        self.stream, self.width = stream, width
-        self.label, self.start, self.last = None, 0.0, 0.0
-        # not a terminal (CI logs, files): a line every 10 s instead of redraws
+    def __init__(self, stream=sys.stderr):
+        self.stream = stream
+        self.label: str | None = None
+        self.bar: tqdm | None = None
         self.interval = 0.2 if getattr(stream, "isatty", lambda: False)() else 10.0
 
     def __call__(self, label: str, done: int, total: int) -> None:
-        now = time.monotonic()
-        if label != self.label:
-            if self.label is not None and self.interval < 1.0:  # close the redrawn line
-                self.stream.write("\n")
-            self.label, self.start, self.last = label, now, 0.0
-        if now - self.last < self.interval and done < total:
-            return
-        self.last = now
-        frac = done / total if total else 1.0
-        elapsed = now - self.start
-        eta = elapsed / frac - elapsed if frac > 0 else float("inf")
-        bar = "#" * int(frac * self.width)
-        lead = "\r" if self.interval < 1.0 else ""
-        eta_s = f"{eta:5.0f}s" if eta != float("inf") else "    ?"
-        self.stream.write(f"{lead}{label:<12} [{bar:<{self.width}}] {done}/{total} "
-                          f"{elapsed:5.0f}s elapsed, ETA {eta_s}")
-        if lead == "" and done < total:
-            self.stream.write("\n")
+        if label != self.label or self.bar is None:
+            self.close()
+            self.label = label
+            self.bar = tqdm(total=total, desc=f"{label:<12}", file=self.stream, ascii=True,
+                            mininterval=self.interval, dynamic_ncols=True, leave=True)
+        self.bar.total = total
+        self.bar.update(done - self.bar.n)
         if done >= total:
-            self.stream.write("\n")
-            self.label = None
-        self.stream.flush()
+            self.close()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        self.bar, self.label = None, None
 
 
 def _load(config_path: str | None, points: int | None = None, seed: int | None = None):
