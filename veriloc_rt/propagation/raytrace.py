@@ -260,6 +260,11 @@ def _scatter(raw: RawPaths, idx: np.ndarray, n: int) -> RawPaths:
     return RawPaths(**out)
 
 
+def _slots(points: np.ndarray) -> np.ndarray:
+    """Rows of the three serving links of each of ``points`` in a [num_points * 3] array."""
+    return np.repeat(points, 3) * 3 + np.tile(np.arange(3), len(points))
+
+
 def _take(raw: RawPaths, idx: np.ndarray) -> RawPaths:
     return RawPaths(**{f: getattr(raw, f)[idx] for f in RawPaths.FIELDS})
 
@@ -330,11 +335,14 @@ def build_cir(raw: RawPaths, shape: tuple[int, int], tx_index: np.ndarray, tx_po
 
 def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None = None,
           cache_dir: str | Path | None = "default",
-          adversary_points: np.ndarray | None = None) -> Propagation:
+          adversary_points: np.ndarray | None = None,
+          ue_points: np.ndarray | None = None) -> Propagation:
     """Ray-trace every link of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
 
     :param adversary_points: [num_points] bool, points at which the adversary transmits or
         listens (default: all); adversary links elsewhere are left empty (``NO_TX``)
+    :param ue_points: [num_points] bool, points whose serving BS -> UE links are traced
+        (default: all); the others are left without a path (a study of a subset of points)
 
     :param cache_dir: "default" uses ``cfg.raytrace.cache_dir``; None disables the cache
     :param progress: called as ``progress(links_done, links_total)``
@@ -358,12 +366,16 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     if active.shape != (P,):
         raise ValueError(f"`adversary_points` must have shape ({P},), not {active.shape}")
     act = np.flatnonzero(active)
+    ue_on = np.ones(P, bool) if ue_points is None else np.asarray(ue_points, bool)
+    if ue_on.shape != (P,):
+        raise ValueError(f"`ue_points` must have shape ({P},), not {ue_on.shape}")
+    on = np.flatnonzero(ue_on)
     # every link in one pass: a source's calls hold all its targets (the adversary stands where
     # the UE stood, so its BS links share the UE's sources)
-    n, m = 3 * P, 3 * len(act)
-    tx_links = np.concatenate([bs_tx.reshape(-1, 3), bs_tx[act].reshape(-1, 3), adv.pos[act]])
-    rx_links = np.concatenate([np.repeat(ue.pos, 3, axis=0), np.repeat(adv.pos[act], 3, axis=0),
-                               ue.pos[act]])
+    k, n, m = 3 * len(on), 3 * P, 3 * len(act)
+    tx_links = np.concatenate([bs_tx[on].reshape(-1, 3), bs_tx[act].reshape(-1, 3), adv.pos[act]])
+    rx_links = np.concatenate([np.repeat(ue.pos[on], 3, axis=0),
+                               np.repeat(adv.pos[act], 3, axis=0), ue.pos[act]])
     total = len(tx_links)
     cb = (lambda done, _n: progress(done, total)) if progress else None
     t0 = time.perf_counter()
@@ -371,10 +383,9 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     # antenna polarizations in the physical direction (receiver port, transmitter port)
     pol = fid.polarization
     bs_p, ue_p, adv_p = pol.bs, pol.ue, pol.adversary_polarization()
-    raw_bs_ue = _take(raw, np.arange(n)).project(ue_p, bs_p)
-    raw_bs_adv = _scatter(_take(raw, np.arange(n, n + m)).project(adv_p, bs_p),
-                          np.repeat(act, 3) * 3 + np.tile(np.arange(3), len(act)), n)
-    raw_adv = _scatter(_take(raw, np.arange(n + m, total)).project(ue_p, adv_p), act, P)
+    raw_bs_ue = _scatter(_take(raw, np.arange(k)).project(ue_p, bs_p), _slots(on), n)
+    raw_bs_adv = _scatter(_take(raw, np.arange(k, k + m)).project(adv_p, bs_p), _slots(act), n)
+    raw_adv = _scatter(_take(raw, np.arange(k + m, total)).project(ue_p, adv_p), act, P)
     mp = fid.max_paths_per_link
     adv_slot = np.where(active[:, None], serving, NO_TX)
     bs_ue = build_cir(raw_bs_ue, (P, 3), serving, bs_tx, ue.pos, zeros_v, ue.vel, fc, elem, mp)

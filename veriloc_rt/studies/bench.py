@@ -325,21 +325,23 @@ def _geometry(cfg: Config, scene_root: Path):
     return build_geometry(cfg, scene_root / key)
 
 
-def _trace(cfg: Config, geometry, repeats: int = 2):
-    """The serving links' CIRs and the warm cost per link: the fastest of ``repeats`` identical
-    traces (the first of a setting also compiles its Dr.Jit kernels and, in a new process,
-    starts the LLVM back end, docs/performance.md; the trace is deterministic, so every repeat
-    gives the same CIRs)."""
+def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
+    """The serving links' CIRs at ``points`` (the other points' links are not traced) and the
+    warm cost per link: the fastest of ``repeats`` identical traces (the first of a setting also
+    compiles its Dr.Jit kernels and, in a new process, starts the LLVM back end,
+    docs/performance.md; the trace is deterministic, so every repeat gives the same CIRs)."""
     from ..propagation.raytrace import trace
 
     p = geometry.num_points
+    on = np.zeros(p, dtype=bool)
+    on[points] = True
     best = np.inf
     for _ in range(max(1, repeats)):
         t = time.perf_counter()
         prop = trace(geometry, cfg.propagation, cfg.seed, cache_dir=None,
-                     adversary_points=np.zeros(p, dtype=bool))
+                     adversary_points=np.zeros(p, dtype=bool), ue_points=on)
         best = min(best, time.perf_counter() - t)
-    return prop.bs_ue, best / (3 * p)
+    return prop.bs_ue, best / (3 * on.sum())
 
 
 def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int | None = None,
@@ -379,7 +381,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
 
     # the config's own propagation: the waveform group's CIRs
     if cfg.propagation.model == "raytrace":
-        bs_ue0, t_link0 = _trace(cfg, geo0)
+        bs_ue0, t_link0 = _trace(cfg, geo0, idx)
     else:
         t = time.perf_counter()
         bs_ue0 = uma_propagation(geo0, cfg.propagation, cfg.seed).bs_ue
@@ -399,7 +401,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         else:
             # the reference is traced once: its cost is only reported, and it is the sweep's
             # costliest setting by far
-            bs_ue, t_link = _trace(c, geo, repeats=1 if s.role == "reference" else 2)
+            bs_ue, t_link = _trace(c, geo, idx, repeats=1 if s.role == "reference" else 2)
         s.time_s, s.time_unit = t_link, "link"
         cirs[id(s)] = bs_ue
         runs[id(s)] = benign_chain(cfg, geo0, bs_ue, keys, idx)

@@ -146,6 +146,14 @@ def test_trace_with_adversary_never_active(tmp_path):
     assert np.all(prop.adv_ue.tx_index == NO_TX) and not prop.adv_ue.valid.any()
     assert not prop.bs_adv.valid.any()
     assert prop.bs_ue.delays.shape[:2] == (3, 3) and prop.stats["adversary_links"] == 0
+    # a subset of points (the fidelity bench): their serving links as in the full trace, the
+    # other points' links without a path
+    some = np.array([True, False, True])
+    part = trace(geo, cfg.propagation, cfg.seed, cache_dir=None,
+                 adversary_points=np.zeros(geo.num_points, bool), ue_points=some)
+    assert part.stats["links"] == 6 and not part.bs_ue.valid[~some].any()
+    for f in ("delays", "gains", "valid", "aoa_az"):
+        assert np.array_equal(getattr(part.bs_ue, f)[some], getattr(prop.bs_ue, f)[some]), f
 
 
 @pytest.mark.raytrace
