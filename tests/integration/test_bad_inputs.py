@@ -477,7 +477,8 @@ def test_line_break_in_a_file_name_stays_one_line(tmp_path):
 
 
 def test_bs_height_at_the_schemas_old_minimum(tmp_path):
-    # 1 m was the schema's minimum, and TR 38.901 UMa divides by h_BS - h_E = 0 there
+    # 1 m was the schema's minimum; the UMa model (and `compare`, whatever the model) then
+    # stopped with "ValueError: antenna heights (z) must be > 1 m", exit 1
     code, _, err = check(tmp_path, dict(TINY, topology={"bs_height_m": 1}))
     assert_one_line(code, err, "topology.bs_height_m")
 
