@@ -11,6 +11,15 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import pytest
+from hypothesis import HealthCheck, settings
+
+# property-based tests (tests/integration/test_bad_inputs_properties.py): derandomized, so CI
+# runs the same examples every time and a failure reproduces; no example database written
+settings.register_profile("ci", derandomize=True, database=None, print_blob=True,
+                          suppress_health_check=[HealthCheck.too_slow])
+# HYPOTHESIS_PROFILE=explore: random examples, for a local search beyond the fixed ones
+settings.register_profile("explore", parent=settings.get_profile("ci"), derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 @pytest.fixture

@@ -13,7 +13,6 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
-import dataclasses
 import json
 import logging
 import sys
@@ -23,6 +22,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from .errors import InputError
+
+#: most BSs ``keys`` writes a set for: the BS id is 24 bits in the AES-CTR counter block
+MAX_KEY_SETS = 2**24
 
 
 class ProgressBar:
@@ -53,26 +55,26 @@ class ProgressBar:
 
 
 def _load(config_path: str | None, points: int | None = None, seed: int | None = None):
-    from .config import load_config
+    from .config import load_config, with_overrides
 
     cfg = load_config(config_path)
-    if points is not None:
-        if points < 2:
-            raise InputError("--points", f"got {points}, expected an integer >= 2")
-        cfg = dataclasses.replace(cfg, trajectory=dataclasses.replace(cfg.trajectory,
-                                                                       num_points=points))
-    if seed is not None:
-        if seed < 0:
-            raise InputError("--seed", f"got {seed}, expected an integer >= 0")
-        cfg = cfg.replace(seed=seed)
+    if points is not None or seed is not None:
+        cfg = with_overrides(cfg, points=points, seed=seed)
     return cfg
+
+
+def _out(path: str) -> Path:
+    """``--out``, checked: a folder that exists or can be created, and is writable."""
+    from .inputs import check_out_dir
+
+    return check_out_dir(path, "--out")
 
 
 def cmd_run(args) -> int:
     from .sim.engine import run
 
     cfg = _load(args.config, args.points, args.seed)
-    out = Path(args.out)
+    out = _out(args.out)
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers", f"got {args.workers}, expected an integer >= 1")
     if args.scheduler is not None and args.workers is not None:
@@ -192,7 +194,7 @@ def cmd_scene(args) -> int:
     from .world.geometry import build_geometry
 
     cfg = _load(args.config)
-    out = Path(args.out)
+    out = _out(args.out)
     geo = build_geometry(cfg, out)
     png = plot_top_view(geo, out / "scene_top_view.png")
     nb = getattr(geo.scene, "num_buildings", None)
@@ -208,14 +210,16 @@ def cmd_keys(args) -> int:
     from .phy.security.keys import generate_keys
 
     cfg = _load(args.config)
+    out = _out(args.out)
     if args.num_bs is not None:
-        if args.num_bs < 1:
-            raise InputError("--num-bs", f"got {args.num_bs}, expected an integer >= 1")
+        if not 1 <= args.num_bs <= MAX_KEY_SETS:
+            raise InputError("--num-bs", f"got {args.num_bs}, expected an integer in 1.."
+                             f"{MAX_KEY_SETS} (the 24-bit BS id of the AES-CTR counter block)")
         num_bs = args.num_bs
     else:
         with tempfile.TemporaryDirectory() as tmp:
             num_bs = len(build_geometry(cfg, tmp).bs_pos)
-    files = generate_keys(args.out, range(num_bs), aes_bits=cfg.security.aes_key_bits,
+    files = generate_keys(out, range(num_bs), aes_bits=cfg.security.aes_key_bits,
                           overwrite=args.force)
     print(f"wrote {len(files)} key files for BSs 0..{num_bs - 1} into {args.out}; "
           f'set "security": {{"keys_dir": "{args.out}"}} to use them')
@@ -223,11 +227,14 @@ def cmd_keys(args) -> int:
 
 
 def cmd_bench(args) -> int:
+    from .config import TrajectoryConfig
+    from .config.fields import check_value
     from .studies.bench import markdown_table, run_bench, write_bench
 
     cfg = _load(args.config)
-    if args.points is not None and args.points < 2:
-        raise InputError("--points", f"got {args.points}, expected an integer >= 2")
+    if args.points is not None:
+        check_value(TrajectoryConfig, "num_points", args.points, "--points")
+    _out(args.out)
     t = time.perf_counter()
     res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar(),
                     groups=tuple(args.only) if args.only else None)
@@ -242,6 +249,7 @@ def cmd_compare(args) -> int:
     from .studies.compare import format_comparison, run_compare
 
     cfg = _load(args.config, args.points, args.seed)
+    _out(args.out)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise InputError("--workers", f"got {workers}, expected an integer >= 1")
@@ -256,6 +264,7 @@ def cmd_validate(args) -> int:
     from .studies.validate import format_validation, run_validate
 
     cfg = _load(args.config, args.points)
+    _out(args.out)
     res = run_validate(cfg, args.out, progress=ProgressBar())
     print(format_validation(res))
     st = res.summary["raytrace_stats"]
@@ -270,13 +279,46 @@ def cmd_config(args) -> int:
 
     if args.action == "schema":
         print(json.dumps(config_schema(), indent=2))
+    elif args.action == "check":
+        import tempfile
+
+        from .sim.checks import check_inputs
+
+        cfg = _load(args.config, args.points, args.seed)
+        with tempfile.TemporaryDirectory() as tmp:
+            geo = check_inputs(cfg, tmp)
+            print(f"ok: {geo.num_points} points, {len(geo.bs_pos)} BSs, scene "
+                  f"{cfg.scene.source}, trajectory {cfg.trajectory.source}")
     else:
         print(json.dumps(config_to_dict(_load(args.config)), indent=2))
     return 0
 
 
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse with the one-line error of every other bad input: ``error: <flag>: <problem>``,
+    exit code 2 (argparse's own prints the usage first). Subparsers inherit the class."""
+
+    def error(self, message: str):
+        field, problem = argparse_field(message)
+        self.exit(2, f"error: {InputError(field, problem)}\n")
+
+
+def argparse_field(message: str) -> tuple[str, str]:
+    """(flag, problem) from one of argparse's error messages."""
+    if message.startswith("argument ") and ": " in message:
+        field, problem = message[len("argument "):].split(": ", 1)
+        return field, problem
+    for lead in ("the following arguments are required: ", "unrecognized arguments: ",
+                 "ambiguous option: "):
+        if message.startswith(lead):
+            rest = message[len(lead):]
+            first = rest.replace(",", " ").replace("=", " ").split()[0] if rest.strip() else "arguments"
+            return first, lead.rstrip(": ").replace("the following arguments are ", "") + ": " + rest
+    return "arguments", message
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
+    p = ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
     p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario (no CONFIG: the built-in default)")
@@ -331,8 +373,12 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--points", type=int, help="number of trajectory points")
     v.set_defaults(func=cmd_validate)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
-    c.add_argument("action", choices=("schema", "show"))
-    c.add_argument("config", nargs="?", help="JSON config file (for show)")
+    c.add_argument("action", choices=("schema", "show", "check"),
+                   help="schema: the JSON schema; show: the resolved config; check: every check "
+                   "of a run's inputs (config, scene, trajectory, key files), nothing computed")
+    c.add_argument("config", nargs="?", help="JSON config file (for show and check)")
+    c.add_argument("--points", type=int, help="check: number of trajectory points")
+    c.add_argument("--seed", type=int, help="check: override the config's seed")
     c.set_defaults(func=cmd_config)
     return p
 

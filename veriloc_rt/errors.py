@@ -7,7 +7,16 @@ Every public entry point that takes user input (config, scene, trajectory, key f
 
 from __future__ import annotations
 
+import math
+import reprlib
 from typing import Any
+
+_SHORT = reprlib.Repr()
+_SHORT.maxstring, _SHORT.maxother, _SHORT.maxlong = 80, 80, 40
+_SHORT.maxlist = _SHORT.maxtuple = _SHORT.maxdict = 8
+_SHORT.maxlevel = 3
+#: control characters that would break the one-line message, escaped
+_ONE_LINE = {i: f"\\x{i:02x}" for i in range(32)} | {10: "\\n", 13: "\\r", 9: " "}
 
 
 class InputError(ValueError):
@@ -18,11 +27,23 @@ class InputError(ValueError):
     """
 
     def __init__(self, field: str, problem: str):
-        self.field = field
-        self.problem = problem
-        super().__init__(f"{field}: {problem}")
+        # one line whatever the field (a file name may hold a line break) or the problem holds
+        self.field = str(field).translate(_ONE_LINE)
+        self.problem = str(problem).translate(_ONE_LINE)
+        super().__init__(f"{self.field}: {self.problem}")
+
+
+def short_repr(value: Any) -> str:
+    """``repr(value)`` cut to a readable length (a message quotes the value, not all of it)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
+        digits = int(value.bit_length() * math.log10(2)) + 1
+        return f"{'-' if value < 0 else ''}<integer of about {digits} digits>"
+    try:
+        return _SHORT.repr(value)
+    except (ValueError, RecursionError):
+        return f"<{type(value).__name__}>"
 
 
 def bad_value(field: str, value: Any, allowed: str) -> InputError:
-    """Uniform message: ``<field>: got <value>, expected <allowed>``."""
-    return InputError(field, f"got {value!r}, expected {allowed}")
+    """Uniform message: ``<field>: got <value>, expected <allowed>`` (long values shortened)."""
+    return InputError(field, f"got {short_repr(value)}, expected {allowed}")

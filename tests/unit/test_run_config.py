@@ -68,7 +68,7 @@ def test_schema_lists_every_field_with_defaults():
 
 
 def test_load_config_errors_name_the_file(tmp_path):
-    with pytest.raises(InputError, match="cannot read"):
+    with pytest.raises(InputError, match="config file .* does not exist"):
         load_config(tmp_path / "missing.json")
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")

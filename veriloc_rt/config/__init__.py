@@ -13,23 +13,26 @@ default, so ``{}`` is the built-in default scenario. Errors name the dotted fiel
 from __future__ import annotations
 
 import dataclasses
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, bad_value
+from ..inputs import MAX_JSON_BYTES, check_path, parse_json, read_text
 from .attacks import FBS_MODES, FBSConfig, JammingConfig, MeaconingConfig, ThreatsConfig
 from .channel import ChannelConfig, ReceiverConfig
 from .detectors import (ABSAConfig, DetectorsConfig, HandshakeConfig, TagDetectorConfig,
                         TrackingConfig)
-from .fields import from_dict, json_schema, param, section, to_dict
+from .fields import check_value, from_dict, json_schema, param, section, to_dict
 from .nr import NRConfig
 from .propagation import (POLARIZATIONS, ArrayConfig, MaterialsConfig, PolarizationConfig,
                           PropagationConfig, RayTracingConfig)
 from .run import SCENARIOS, RunConfig
 from .security import SecurityConfig
 from .world import SceneConfig, TopologyConfig, TrajectoryConfig
+
+#: BSs that serve every point: the three of the hexagonal cell (world.topology)
+SERVING_BS = 3
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,11 @@ class Config:
                              "realisations")
 
     def validate(self, path: str) -> None:
+        """Checks across sections (each section checked its own fields already)."""
+        if self.nr.num_bs != SERVING_BS:
+            raise bad_value("nr.comb_offsets", list(self.nr.comb_offsets),
+                            f"{SERVING_BS} offsets, one per serving BS (the hexagonal layout "
+                            f"serves every point from the {SERVING_BS} BSs of its cell)")
         if len(self.security.encrypted) != self.nr.num_bs:
             raise bad_value("security.encrypted", list(self.security.encrypted),
                             f"{self.nr.num_bs} flags, one per serving BS of nr.comb_offsets")
@@ -65,6 +73,31 @@ class Config:
             raise bad_value("threats.fbs.spoofed_slots", list(slots),
                             "with threats.fbs.mode 'bias', a subset of the serving BSs (a bias on "
                             "every BS is common and cancels in every RSTD)")
+
+        self._validate_receiver()
+        self._validate_world()
+        self.run.check_trajectory_length(self.trajectory.num_points, "trajectory.num_points")
+
+    def _validate_receiver(self) -> None:
+        rx, nr, m = self.receiver, self.nr, self.propagation.ue_array.num_elements
+        for i, s in enumerate(rx.tag_slots):
+            if s >= nr.slots_per_frame:
+                raise bad_value(f"receiver.tag_slots[{i}]", s, f"a PRS slot 0.."
+                                f"{nr.slots_per_frame - 1} (nr.slots_per_frame)")
+        # the AoA estimator smooths over subarrays of M - 1 elements (M >= 3) and resolves at
+        # most one source fewer than the subarray has elements (phy.receiver.aoa)
+        most = (m - 1 if m >= 3 else m) - 1
+        if rx.aoa_num_sources > most:
+            raise bad_value("receiver.aoa_num_sources", rx.aoa_num_sources,
+                            f"at most {most} for a {m}-element array "
+                            "(propagation.ue_array.num_elements), or 0 for MDL")
+
+    def _validate_world(self) -> None:
+        if (self.scene.is_canyon and self.trajectory.source == "generator"
+                and self.trajectory.region_m > self.scene.extent_m):
+            raise bad_value("trajectory.region_m", self.trajectory.region_m,
+                            f"a value <= scene.extent_m ({self.scene.extent_m}): the street grid "
+                            "ends there")
 
     def replace(self, **changes: Any) -> "Config":
         """Copy with top-level fields changed (``seed=...``)."""
@@ -84,17 +117,23 @@ def load_config(path: str | Path | None) -> Config:
     """
     if path is None:
         return Config()
-    p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise InputError(str(path), f"cannot read config file ({exc.strerror or exc})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(str(path), f"not valid JSON (line {exc.lineno}: {exc.msg})") from None
+    p = check_path(path, str(path))
+    text = read_text(p, str(path), "config file", MAX_JSON_BYTES)
+    data = parse_json(text, str(path))
     cfg = config_from_dict(data)
     return _resolve_paths(cfg, p.parent)
+
+
+def with_overrides(cfg: Config, *, points: int | None = None, seed: int | None = None) -> Config:
+    """``cfg`` with the command line's ``--points`` and ``--seed``, checked against the same
+    limits as the config fields (and the config re-validated as a whole)."""
+    data = config_to_dict(cfg)
+    if points is not None:
+        data["trajectory"]["num_points"] = check_value(TrajectoryConfig, "num_points", points,
+                                                       "--points")
+    if seed is not None:
+        data["seed"] = check_value(Config, "seed", seed, "--seed")
+    return config_from_dict(data)
 
 
 def _resolve_paths(cfg: Config, base: Path) -> Config:

@@ -126,13 +126,16 @@ class ReceiverConfig:
                                   lo=0.01, hi=1e4)
 
     def validate(self, path: str = "receiver") -> None:
+        p = f"{path}." if path else ""
         if not self.srs_symbols or any(not 0 <= s < 14 for s in self.srs_symbols):
-            raise bad_value(f"{path}.srs_symbols", self.srs_symbols, "symbols in 0..13")
+            raise bad_value(f"{p}srs_symbols", self.srs_symbols, "symbols in 0..13")
+        if not self.tag_slots:
+            raise bad_value(f"{p}tag_slots", list(self.tag_slots), "at least one slot")
         if any(not 0 <= s < 20 for s in self.tag_slots):
-            raise bad_value(f"{path}.tag_slots", self.tag_slots, "slot indices in 0..19")
+            raise bad_value(f"{p}tag_slots", self.tag_slots, "slot indices in 0..19")
         if self.doppler_max_hz > 0 and self.doppler_step_hz > self.doppler_max_hz:
-            raise bad_value(f"{path}.doppler_step_hz", self.doppler_step_hz,
+            raise bad_value(f"{p}doppler_step_hz", self.doppler_step_hz,
                             f"a value <= doppler_max_hz ({self.doppler_max_hz})")
 
     def __post_init__(self) -> None:
-        self.validate()
+        self.validate("")  # from_dict names the section

@@ -68,11 +68,12 @@ class TrackingConfig:
     window_n: int = param(2, "N: recovery window length in epochs", lo=1, hi=100)
 
     def validate(self, path: str = "tracking") -> None:
+        p = f"{path}." if path else ""
         if self.accept_m > self.window_n:
-            raise bad_value(f"{path}.accept_m", self.accept_m, f"<= window_n ({self.window_n})")
+            raise bad_value(f"{p}accept_m", self.accept_m, f"<= window_n ({self.window_n})")
 
     def __post_init__(self) -> None:
-        self.validate()
+        self.validate("")  # from_dict names the section
 
 @dataclass(frozen=True)
 class DetectorsConfig:

@@ -16,6 +16,9 @@ from typing import Any
 
 from ..errors import InputError, bad_value
 
+#: every integer field fits in a signed 64-bit integer (NumPy and the file formats use int64)
+INT_LIMIT = 2**63
+
 
 def param(default: Any, doc: str, *, lo: float | None = None, hi: float | None = None,
           choices: tuple | None = None, lo_open: bool = False) -> Any:
@@ -72,15 +75,21 @@ def _coerce(tp: Any, value: Any, path: str) -> Any:
         raise bad_value(path, value, "true or false")
     if tp is int:
         if isinstance(value, int) and not isinstance(value, bool):
+            if not -INT_LIMIT <= value < INT_LIMIT:
+                raise bad_value(path, value, "an integer of at most 64 bits")
             return value
         if isinstance(value, float) and value.is_integer() and abs(value) < 2**53:
             return int(value)
         raise bad_value(path, value, "an integer")
     if tp is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            if not math.isfinite(value):
+            try:
+                as_float = float(value)
+            except OverflowError:  # an integer beyond the float range
+                raise bad_value(path, value, "a finite number") from None
+            if not math.isfinite(as_float):
                 raise bad_value(path, value, "a finite number")
-            return float(value)
+            return as_float
         raise bad_value(path, value, "a number")
     if tp is str:
         if isinstance(value, str):
@@ -125,11 +134,23 @@ def from_dict(cls: type, data: Any, path: str = "") -> Any:
         coerced = _coerce(hints[name], value, fpath)
         _check_constraints(fields[name], coerced, fpath)
         kwargs[name] = coerced
-    obj = cls(**kwargs)
+    try:
+        obj = cls(**kwargs)
+    except InputError as exc:  # a section that validates itself on construction
+        raise InputError(f"{path}.{exc.field}" if path else exc.field, exc.problem) from None
     check = getattr(obj, "validate", None)
     if check is not None:
         check(path)
     return obj
+
+
+def check_value(cls: type, name: str, value: Any, where: str) -> Any:
+    """``value`` checked as field ``name`` of section ``cls`` (type, range, choices) and coerced,
+    with ``where`` (a command-line flag) named in the error."""
+    f = {f.name: f for f in dataclasses.fields(cls)}[name]
+    coerced = _coerce(typing.get_type_hints(cls)[name], value, where)
+    _check_constraints(f, coerced, where)
+    return coerced
 
 
 def to_dict(obj: Any) -> Any:

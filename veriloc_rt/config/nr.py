@@ -79,37 +79,38 @@ class NRConfig:
 
     def validate(self, path: str = "nr") -> None:
         """Cross-field checks; raise :class:`InputError` naming the field."""
+        p = f"{path}." if path else ""
         if self.num_prb % 4:
-            raise bad_value(f"{path}.num_prb", self.num_prb, "a multiple of 4 (TS 38.211 PRS NumRB)")
+            raise bad_value(f"{p}num_prb", self.num_prb, "a multiple of 4 (TS 38.211 PRS NumRB)")
         if self.num_symbols < self.comb or self.num_symbols % self.comb:
-            raise bad_value(f"{path}.num_symbols", self.num_symbols,
+            raise bad_value(f"{p}num_symbols", self.num_symbols,
                             f"a multiple of comb {self.comb} (TS 38.211 7.4.1.7.3)")
         if self.start_symbol + self.num_symbols > SYMBOLS_PER_SLOT:
-            raise bad_value(f"{path}.start_symbol", self.start_symbol,
+            raise bad_value(f"{p}start_symbol", self.start_symbol,
                             f"<= {SYMBOLS_PER_SLOT - self.num_symbols} for {self.num_symbols} symbols")
         if self.slots_per_frame > 10 * 2**self.numerology:
-            raise bad_value(f"{path}.slots_per_frame", self.slots_per_frame,
+            raise bad_value(f"{p}slots_per_frame", self.slots_per_frame,
                             f"<= {10 * 2**self.numerology} at numerology {self.numerology}")
         if not self.comb_offsets:
-            raise bad_value(f"{path}.comb_offsets", self.comb_offsets, "at least one BS")
+            raise bad_value(f"{p}comb_offsets", self.comb_offsets, "at least one BS")
         if len(self.prs_ids) != self.num_bs:
-            raise bad_value(f"{path}.prs_ids", self.prs_ids, f"{self.num_bs} ids, one per comb offset")
+            raise bad_value(f"{p}prs_ids", self.prs_ids, f"{self.num_bs} ids, one per comb offset")
         for i, n_id in enumerate(self.prs_ids):
             if not 0 <= n_id <= 4095:
-                raise bad_value(f"{path}.prs_ids[{i}]", n_id, "0..4095")
+                raise bad_value(f"{p}prs_ids[{i}]", n_id, "0..4095")
         for i, off in enumerate(self.comb_offsets):
             if not 0 <= off < self.comb:
-                raise bad_value(f"{path}.comb_offsets[{i}]", off, f"0..{self.comb - 1}")
+                raise bad_value(f"{p}comb_offsets[{i}]", off, f"0..{self.comb - 1}")
         if len(set(self.comb_offsets)) != self.num_bs:
-            raise bad_value(f"{path}.comb_offsets", self.comb_offsets, "distinct offsets")
+            raise bad_value(f"{p}comb_offsets", self.comb_offsets, "distinct offsets")
         if self.sample_rate_hz is not None:
             ratio = self.sample_rate_hz / self.subcarrier_spacing_hz
             n = int(round(ratio))
             if abs(ratio - n) > 1e-9 * ratio or n & (n - 1) or n < self.min_fft_size:
-                raise InputError(f"{path}.sample_rate_hz",
+                raise InputError(f"{p}sample_rate_hz",
                                  f"got {self.sample_rate_hz!r}, expected subcarrier spacing times a "
                                  f"power of two >= {self.min_fft_size} (e.g. "
                                  f"{self.min_fft_size * self.subcarrier_spacing_hz:.6g} ... 122.88e6)")
 
     def __post_init__(self) -> None:
-        self.validate()
+        self.validate("")  # from_dict names the section

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import bad_value
+from ..inputs import check_path
 from .fields import param, section
 
 __all__ = ["ArrayConfig", "POLARIZATIONS", "PolarizationConfig", "MaterialsConfig",
@@ -16,7 +17,8 @@ __all__ = ["ArrayConfig", "POLARIZATIONS", "PolarizationConfig", "MaterialsConfi
 class ArrayConfig:
     """The UE's uniform linear array (horizontal)."""
 
-    num_elements: int = param(5, "number of ULA elements", lo=1, hi=64)
+    num_elements: int = param(5, "number of ULA elements (at least 2: one element measures no "
+                              "angle of arrival)", lo=2, hi=64)
     spacing_wavelengths: float = param(0.5, "element spacing", lo=0.05, hi=4.0, lo_open=False)
     axis_azimuth_deg: float = param(0.0, "azimuth of the array axis (from +x, counter-clockwise)",
                                     lo=-360.0, hi=360.0)
@@ -137,6 +139,8 @@ class RayTracingConfig:
                                          "depolarization of every material")
 
     def validate(self, path: str) -> None:
+        if self.cache_dir:
+            check_path(self.cache_dir, f"{path}.cache_dir")
         if self.diffuse_reflection and self.materials.scattering_coefficient == 0.0:
             raise bad_value(f"{path}.diffuse_reflection", True,
                             "false while materials.scattering_coefficient is 0 (nothing is "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..errors import bad_value
+from ..errors import InputError, bad_value
 from .fields import param
 
 __all__ = ["SCENARIOS", "RunConfig"]
@@ -57,6 +57,20 @@ class RunConfig:
         if self.attack_end_fraction <= self.attack_start_fraction:
             raise bad_value(f"{path}.attack_end_fraction", self.attack_end_fraction,
                             f"a value > attack_start_fraction ({self.attack_start_fraction})")
+
+    def check_trajectory_length(self, num_points: int, where: str) -> None:
+        """Raise :class:`InputError` when an attack scenario's window holds no point of a
+        trajectory of ``num_points`` points (every attack metric would be empty)."""
+        if not any(s != "none" for s in self.scenarios):
+            return
+        lo = int(self.attack_start_fraction * num_points)
+        hi = int(self.attack_end_fraction * num_points)
+        if hi <= lo:
+            raise InputError("run.attack_end_fraction",
+                             f"the attack window, points floor({self.attack_start_fraction:g} x "
+                             f"{num_points}) = {lo} up to floor({self.attack_end_fraction:g} x "
+                             f"{num_points}) = {hi}, is empty at {num_points} points ({where}); "
+                             "widen the window or use more points")
 
     def attack_points(self, num_points: int):
         """[num_points] bool, the attack window of a trajectory of ``num_points`` points."""

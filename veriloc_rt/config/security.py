@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from .fields import param
 from ..errors import bad_value
+from ..inputs import check_path
 
 
 @dataclass(frozen=True)
@@ -30,3 +31,5 @@ class SecurityConfig:
     def validate(self, path: str = "security") -> None:
         if not self.encrypted:
             raise bad_value(f"{path}.encrypted", self.encrypted, "one flag per serving BS")
+        if self.keys_dir:  # '' or null: simulated keys
+            check_path(self.keys_dir, f"{path}.keys_dir")

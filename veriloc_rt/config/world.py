@@ -5,9 +5,53 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import bad_value
+from ..inputs import check_path
 from .fields import param
 
-__all__ = ["SceneConfig", "TopologyConfig", "TrajectoryConfig"]
+__all__ = ["MIN_ANTENNA_HEIGHT_M", "ITU_MATERIAL_RANGES_GHZ", "itu_material_problem", "SceneConfig", "TopologyConfig",
+           "TrajectoryConfig"]
+
+#: antennas sit above this height, m: TR 38.901's effective environment height h_E = 1 m (Table
+#: 7.4.1-1 note 1), below which the UMa path loss and its breakpoint distance are undefined
+MIN_ANTENNA_HEIGHT_M = 1.0
+
+#: ITU-R P.2040-3 Table 3 materials Sionna RT knows (``sionna.rt.radio_materials.itu``), with
+#: the frequency ranges, GHz, its fitted parameters hold for (a test checks the copy)
+ITU_MATERIAL_RANGES_GHZ = {
+    "concrete": ((1.0, 100.0), (110.0, 330.0)),
+    "brick": ((1.0, 40.0), (110.0, 330.0)),
+    "plasterboard": ((1.0, 100.0), (110.0, 330.0), (100.0, 400.0)),
+    "wood": ((0.001, 100.0), (110.0, 330.0), (100.0, 400.0)),
+    "glass": ((0.1, 100.0), (220.0, 450.0), (100.0, 400.0)),
+    "clear_acrylic": ((110.0, 330.0),),
+    "ceiling_board": ((1.0, 100.0), (220.0, 450.0), (100.0, 400.0)),
+    "chipboard": ((1.0, 100.0), (100.0, 200.0)),
+    "plywood": ((1.0, 40.0), (110.0, 330.0), (100.0, 400.0)),
+    "marble": ((1.0, 60.0), (110.0, 330.0), (100.0, 400.0)),
+    "floorboard": ((50.0, 100.0), (220.0, 300.0), (300.0, 400.0), (400.0, 450.0),
+                   (100.0, 400.0)),
+    "vinyl_tile": ((1.0, 40.0),),
+    "carpet_tile": ((1.0, 40.0),),
+    "asphalt_concrete": ((1.0, 40.0),),
+    "metal": ((1.0, 100.0),),
+    "very_dry_ground": ((1.0, 10.0),),
+    "medium_dry_ground": ((1.0, 10.0),),
+    "wet_ground": ((1.0, 10.0),),
+    "vacuum": ((0.001, 100.0),),
+}
+
+
+def itu_material_problem(name: str, frequency_hz: float) -> str | None:
+    """Why ITU material ``name`` cannot be used at ``frequency_hz`` (None: it can)."""
+    ranges = ITU_MATERIAL_RANGES_GHZ.get(name)
+    if ranges is None:
+        return (f"unknown ITU material {name!r:.40}; Sionna RT knows "
+                + ", ".join(ITU_MATERIAL_RANGES_GHZ))
+    f_ghz = frequency_hz / 1e9
+    if not any(lo <= f_ghz <= hi for lo, hi in ranges):
+        spans = ", ".join(f"{lo:g}-{hi:g}" for lo, hi in ranges)
+        return f"ITU material {name!r} is defined for {spans} GHz, not {f_ghz:g} GHz"
+    return None
 
 
 @dataclass(frozen=True)
@@ -28,10 +72,7 @@ class SceneConfig:
                             "cost and accuracy of the margins: docs/performance.md)",
                             lo=0.0, hi=5000.0)
     building_material: str = param("concrete", "ITU-R P.2040 material of the buildings",
-                                   choices=("concrete", "brick", "plasterboard", "wood",
-                                            "glass", "ceiling_board", "chipboard", "floorboard",
-                                            "metal", "marble", "very_dry_ground",
-                                            "medium_dry_ground", "wet_ground"))
+                                   choices=tuple(ITU_MATERIAL_RANGES_GHZ))
     ground_material: str = param("medium_dry_ground", "ITU-R P.2040 material of the ground",
                                  choices=("concrete", "very_dry_ground", "medium_dry_ground",
                                           "wet_ground", "marble", "metal"))
@@ -42,6 +83,8 @@ class SceneConfig:
         return self.source == "canyon"
 
     def validate(self, path: str) -> None:
+        if not self.is_canyon:
+            check_path(self.source, f"{path}.source")
         if not self.is_canyon and not self.source.endswith(".xml"):
             raise bad_value(f"{path}.source", self.source, "'canyon' or a path ending in .xml")
 
@@ -52,7 +95,10 @@ class TopologyConfig:
 
     isd_m: float = param(500.0, "inter-site distance (distance between cell centres)",
                          lo=20.0, hi=20000.0)
-    bs_height_m: float = param(25.0, "BS antenna height", lo=1.0, hi=300.0)
+    bs_height_m: float = param(25.0, "BS antenna height (above TR 38.901's effective "
+                               "environment height h_E = 1 m, which the UMa model, and "
+                               "`compare` on any config, need)", lo=MIN_ANTENNA_HEIGHT_M,
+                               lo_open=True, hi=300.0)
     random_offset: bool = param(True, "random offset and rotation of the layout per Monte Carlo "
                                 "iteration, drawn from the seed")
     iteration: int = param(0, "Monte Carlo iteration index (selects the layout draw)", lo=0)
@@ -66,7 +112,9 @@ class TrajectoryConfig:
     num_points: int = param(120, "number of trajectory points (the built-in default is small "
                             "enough for a few minutes; configs/paper-*.json use the paper's 1200)", lo=2, hi=1_000_000)
     dt_s: float = param(1.0, "time between points", lo=0.001, hi=3600.0, lo_open=True)
-    ue_height_m: float = param(1.5, "UE antenna height above ground", lo=0.1, hi=100.0)
+    ue_height_m: float = param(1.5, "UE antenna height above ground (above h_E = 1 m, as "
+                               "topology.bs_height_m)", lo=MIN_ANTENNA_HEIGHT_M, lo_open=True,
+                               hi=100.0)
     region_m: float = param(250.0, "half-side of the square, centred on the origin, the "
                             "generated UE drives in", lo=10.0, hi=5000.0)
     max_speed_mps: float = param(13.9, "top cruising speed", lo=0.1, hi=70.0)
@@ -84,6 +132,8 @@ class TrajectoryConfig:
                                               lo=0.5, hi=1000.0)
 
     def validate(self, path: str) -> None:
+        if self.source != "generator":
+            check_path(self.source, f"{path}.source")
         if self.min_speed_mps > self.max_speed_mps:
             raise bad_value(f"{path}.min_speed_mps", self.min_speed_mps,
                             f"a value <= max_speed_mps ({self.max_speed_mps})")

@@ -1,5 +1,6 @@
 """Layer 8, simulation: a whole run over the trajectory.
 
+:mod:`.checks` (the input checks that need the geometry, before any tracing),
 :mod:`.runner` (one scenario point by point: chains, adversary, detectors, outcome),
 :mod:`.executors` (where the chains run: here, forked processes, Dask), :mod:`.run_folder`
 (``run.json``, resume, versions, keys), :mod:`.engine` (:func:`~.engine.run`, the main job)

@@ -35,6 +35,7 @@ from ..report.propagation_summary import summarize
 from ..report.results import ResultsWriter, read_rows, results_path, scenario_metrics
 from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
+from .checks import check_run_inputs, warn_unreachable
 from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
 from .run_folder import check_resume, run_keys, write_run_json
 from .runner import ScenarioRunner
@@ -133,11 +134,13 @@ def _run(cfg: Config, out_dir, progress: Progress | None, resume: bool, workers:
         check_resume(out, cfg)
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
     geometry = build_geometry(cfg, scene_dir)
-    keys = run_keys(cfg, len(geometry.bs_pos))  # bad key files fail now, before any tracing
+    check_run_inputs(cfg, geometry)  # every input checked now, before any tracing
+    keys = run_keys(cfg, len(geometry.bs_pos))
     timing["geometry"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     prop = compute_propagation(cfg, geometry, progress)
     timing["propagation"] = time.perf_counter() - t1
+    warn_unreachable(prop.bs_ue.has_path())
     summary = propagation_summary(geometry, prop)
     if out:
         out.mkdir(parents=True, exist_ok=True)

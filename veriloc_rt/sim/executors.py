@@ -16,6 +16,7 @@ import logging
 import multiprocessing as mp
 import signal
 import threading
+import time
 import uuid
 from collections import deque
 from contextlib import contextmanager
@@ -27,7 +28,7 @@ from .runner import ScenarioRunner
 log = logging.getLogger(__name__)
 
 __all__ = ["LocalChains", "ForkPool", "DaskChains", "check_workers", "scheduler_client",
-           "connect", "local_cluster", "CONNECT_TIMEOUT_S"]
+           "connect", "probe_scheduler", "local_cluster", "CONNECT_TIMEOUT_S"]
 
 
 def check_workers(workers, scheduler) -> None:
@@ -211,11 +212,62 @@ def connect(address: str, timeout_s: float | None = None):
     try:
         # a malformed address fails here, before a Client exists (a Client that fails to
         # start hangs for 20 s in its finaliser at exit)
-        resolve_address(address)
+        resolved = resolve_address(address)
+        probe_scheduler(resolved, timeout)
         return Client(address, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+    except InputError:
+        raise
+    # MemoryError: a peer that is no Dask scheduler answered bytes read as a frame length
+    except (OSError, TimeoutError, ValueError, TypeError, MemoryError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise InputError("--scheduler", f"cannot connect to {address} ({reason})") from None
+
+
+#: largest first message accepted from a scheduler, bytes: its handshake (a small dict of
+#: versions and options, well under 1 kB) serialised with Dask's frame header
+MAX_HANDSHAKE_BYTES = 1 << 20
+
+
+def probe_scheduler(address: str, timeout_s: float) -> None:
+    """Check that a Dask scheduler listens at ``tcp://`` ``address``, in at most ``timeout_s``.
+
+    A Dask server speaks first: on a new connection it sends its handshake, preceded by the
+    message length as a little-endian uint64 (``distributed.comm.tcp.TCP.read``), and Dask's
+    client then reads that length with no time limit and allocates it. An HTTP server sends
+    nothing until it gets a request (the client waits forever), another server sends text (the
+    client allocates exabytes). Here a plain socket reads the first 8 bytes with a deadline and
+    checks the length. Other schemes (``tls://``, ``ucx://``) are left to Dask.
+
+    :raises InputError: ``--scheduler: ...`` when nothing or something else answers
+    """
+    import socket
+    import struct
+
+    from distributed.comm import parse_address, parse_host_port
+
+    scheme, loc = parse_address(address)
+    if scheme != "tcp":
+        return
+    host, port = parse_host_port(loc)
+    deadline = time.monotonic() + timeout_s
+    with socket.create_connection((host, port), timeout=timeout_s) as sock:
+        head = b""
+        while len(head) < 8:
+            sock.settimeout(max(deadline - time.monotonic(), 1e-3))
+            try:
+                chunk = sock.recv(8 - len(head))
+            except (TimeoutError, socket.timeout):
+                raise InputError("--scheduler", f"{address} accepted the connection but sent no "
+                                 f"Dask handshake within {timeout_s:g} s: not a Dask "
+                                 "scheduler") from None
+            if not chunk:
+                raise InputError("--scheduler", f"{address} closed the connection without a "
+                                 "Dask handshake: not a Dask scheduler")
+            head += chunk
+    (nbytes,) = struct.unpack("<Q", head)
+    if not 0 < nbytes <= MAX_HANDSHAKE_BYTES:
+        raise InputError("--scheduler", f"{address} answered {head!r}, not a Dask handshake: "
+                         "not a Dask scheduler")
 
 
 #: Dask config of the workers a local cluster starts: without the nanny's default

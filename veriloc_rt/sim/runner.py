@@ -49,7 +49,30 @@ from ..attacks.adversary import AdversarySignal
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ScenarioRunner"]
+__all__ = ["FRAME_OFFSETS", "ScenarioRunner", "frame_offset"]
+
+
+#: frame counters a run may use: the 32-bit counter of the AES-CTR counter block and the tags
+#: (phy.security.encryption, phy.security.tags), less the longest trajectory
+#: (trajectory.num_points)
+FRAME_OFFSETS = 2**32 - 1_000_000
+
+
+def frame_offset(cfg: Config) -> int:
+    """Frame counter of the run's first point.
+
+    With key files (``security.keys_dir``) the same keys serve many runs and Monte Carlo
+    realisations, so each run starts its frame counter at an offset drawn from its seed (the
+    named stream ``"frame-offset"``): two runs with different seeds use the same (key, counter
+    block) pair only if their windows of frame counters overlap, probability about
+    2 N / :data:`FRAME_OFFSETS` for N points (6e-7 for the paper's 1200). Runs with the same
+    seed and config repeat the same frames and the same plaintext: their ciphertexts are equal,
+    which reveals nothing new. Without key files every seed draws its own keys, so no key serves
+    two seeds and the offset stays 0 (the default run's numbers are unchanged).
+    """
+    if cfg.security.keys_dir is None:
+        return 0
+    return int(stream(cfg.seed, "frame-offset").integers(0, FRAME_OFFSETS))
 
 
 class ScenarioRunner:
@@ -61,6 +84,8 @@ class ScenarioRunner:
     def __init__(self, cfg: Config, geometry, propagation, keys):
         self.cfg, self.geo, self.prop = cfg, geometry, propagation
         self.window = cfg.run.attack_points(geometry.num_points)
+        #: frame counter of point 0 (point i is frame frame0 + i): see :func:`frame_offset`
+        self.frame0 = frame_offset(cfg)
         nbs = cfg.nr.num_bs
         mk = dict(nr=cfg.nr, channel=cfg.channel, ue_array=cfg.propagation.ue_array,
                   carrier_frequency_hz=cfg.propagation.carrier_frequency_hz, keys=keys)
@@ -195,14 +220,14 @@ class ScenarioRunner:
         sig = None
         if attack:
             t = time.perf_counter()
-            sig = self.adversary[key](scenario, i, i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
+            sig = self.adversary[key](scenario, i, self.frame0 + i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
                                       self.geo.ue.pos[i], stream(self.cfg.seed, "adversary",
                                                                  _SCEN[scenario], mode, i),
                                       adv_ue=p.adv_ue)
             self.timing["adversary"] += time.perf_counter() - t
         t = time.perf_counter()
         before = dict(chain.stage_s)
-        res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=i,
+        res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=self.frame0 + i,
                     adv_ue=p.adv_ue if attack else None, adversary_signal=sig, estimates=estimates)
         self.timing["chain"] += time.perf_counter() - t
         for k in STAGES:

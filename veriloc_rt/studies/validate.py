@@ -225,6 +225,7 @@ def run_validate(cfg: Config, out_dir: str | Path | None = None, progress: Progr
         ``.veriloc-scene``)
     """
     from ..propagation.raytrace import trace
+    from ..sim.checks import check_materials
     from ..world.geometry import build_geometry
 
     if not np.isfinite(bin_width_m) or bin_width_m <= 0:
@@ -234,6 +235,7 @@ def run_validate(cfg: Config, out_dir: str | Path | None = None, progress: Progr
     t0 = time.perf_counter()
     out = Path(out_dir) if out_dir is not None else None
     geometry = build_geometry(cfg, (out / "scene") if out else Path(".veriloc-scene"))
+    check_materials(cfg)  # traced whatever propagation.model says
     timing["geometry"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None

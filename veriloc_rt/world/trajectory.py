@@ -7,6 +7,7 @@ length at each sample, so the adversary can follow *the same path* a number of p
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,12 +15,16 @@ from pathlib import Path
 import numpy as np
 
 from ..config import TrajectoryConfig
-from ..errors import InputError, bad_value
+from ..config.world import MIN_ANTENNA_HEIGHT_M
+from ..errors import InputError, bad_value, short_repr
+from ..inputs import read_text
 
 _DIRS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # E, N, W, S
 _TURN_SPEED = 4.0  # m/s through a corner (about 15 km/h)
 _DS = 0.25  # m, arc-length step of the kinematic integration
 _STOP_LINE = 6.0  # m before the intersection centre where a stopping vehicle waits
+#: largest trajectory CSV read, bytes (a million points of t,x,y,z at full precision: ~80 MB)
+MAX_CSV_BYTES = 128 << 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,18 +177,19 @@ def load_csv_trajectory(path: str | Path, cfg: TrajectoryConfig) -> Trajectory:
 
     :raises InputError: naming the file, row and column for anything unusable
     """
-    path = Path(path)
     field = "trajectory.source"
-    if not path.is_file():
-        raise InputError(field, f"trajectory file {str(path)!r} does not exist")
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
+    text = read_text(path, field, "trajectory file", MAX_CSV_BYTES)
+    path = Path(path)
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:  # a field over csv.field_size_limit(), a NUL byte
+        raise InputError(str(path), f"not a readable CSV file ({exc})") from None
     if not rows:
         raise InputError(str(path), "empty file, expected a header t,x,y[,z] and rows")
     header = [h.strip().lower() for h in rows[0]]
     if header[:3] != ["t", "x", "y"] or header[3:] not in ([], ["z"]):
-        raise InputError(str(path), f"header {','.join(rows[0])!r}, expected 't,x,y' or 't,x,y,z'")
-    data = []
+        raise InputError(str(path), f"header {short_repr(','.join(rows[0]))}, expected 't,x,y' or 't,x,y,z'")
+    data, rows_used = [], []   # the values and their line numbers
     for i, row in enumerate(rows[1:], start=2):
         if not row or all(not c.strip() for c in row):
             continue
@@ -192,23 +198,40 @@ def load_csv_trajectory(path: str | Path, cfg: TrajectoryConfig) -> Trajectory:
         try:
             vals = [float(c) for c in row]
         except ValueError:
-            raise InputError(f"{path}:{i}", f"non-numeric value in {row!r}") from None
+            raise InputError(f"{path}:{i}", f"non-numeric value in {short_repr(row)}") from None
         if not all(math.isfinite(v) for v in vals):
-            raise InputError(f"{path}:{i}", f"non-finite value in {row!r}")
+            raise InputError(f"{path}:{i}", f"non-finite value in {short_repr(row)}")
         data.append(vals)
+        rows_used.append(i)
     if len(data) < 2:
         raise InputError(str(path), f"{len(data)} data rows, expected at least 2")
     arr = np.array(data)[: cfg.num_points]
     t = arr[:, 0]
     if np.any(np.diff(t) <= 0):
-        bad = int(np.argmax(np.diff(t) <= 0)) + 3
-        raise InputError(f"{path}:{bad}", "time t must increase strictly")
+        bad = int(np.argmax(np.diff(t) <= 0)) + 1
+        raise InputError(f"{path}:{rows_used[bad]}", "time t must increase strictly")
     z = arr[:, 3] if arr.shape[1] == 4 else np.full(len(t), cfg.ue_height_m)
+    if np.any(z <= MIN_ANTENNA_HEIGHT_M):
+        bad = int(np.argmax(z <= MIN_ANTENNA_HEIGHT_M))
+        raise InputError(f"{path}:{rows_used[bad]}", f"z = {z[bad]:g} m, expected a UE height "
+                         f"above {MIN_ANTENNA_HEIGHT_M:g} m (TR 38.901's h_E, which the UMa model "
+                         "and `compare` need)")
     pos = np.stack([arr[:, 1], arr[:, 2], z], axis=-1)
-    step = np.linalg.norm(np.diff(pos, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(step)])
+    with np.errstate(over="ignore", invalid="ignore"):  # huge values: checked just below
+        step = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+        s = np.concatenate([[0.0], np.cumsum(step)])
+        vel = _velocity(t, pos)
+    if not np.all(np.isfinite(s)):
+        raise InputError(str(path), "coordinates too large: the path length is not finite")
+    if s[-1] <= 0.0:
+        raise InputError(str(path), "the UE never moves (every row at one position); the "
+                         "adversary follows the UE's path, so the trajectory must move")
+    if not np.all(np.isfinite(vel)):
+        bad = int(np.argmax(~np.all(np.isfinite(vel), axis=1)))
+        raise InputError(f"{path}:{rows_used[bad]}", "the speed is not finite (time steps too "
+                         "small for the distance covered)")
     keep = np.concatenate([[True], step > 0])  # polyline without repeated vertices
-    return Trajectory(t, pos, _velocity(t, pos), s, pos[keep])
+    return Trajectory(t, pos, vel, s, pos[keep])
 
 
 def check_points(scene, pos: np.ndarray, what: str, source: str) -> None:

@@ -16,7 +16,9 @@ keystream of fewer than 2^40 blocks never carries out of the block field: two di
 (domain, bs_id, frame, slot, symbol) tuples use disjoint sets of counter blocks, and no
 (key, counter block) pair repeats across BSs, frames, slots and symbols, even if two BSs shared a
 key. The frame counter must not wrap under one key: at 10 ms per frame, 2^32 frames last 497 days,
-so keys are rotated well before that.
+so keys are rotated well before that. A run of the simulator numbers its points' frames from an
+offset drawn from its seed when it uses key files, so runs that share those keys do not share
+counter blocks (:func:`veriloc_rt.sim.runner.frame_offset`).
 """
 
 from __future__ import annotations

@@ -7,6 +7,7 @@ byte-identical files; this is what the propagation cache hashes.
 from __future__ import annotations
 
 import hashlib
+import io
 import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -14,9 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...inputs import check_path, read_bytes
 from .canyon import UrbanCanyon
 
 SCENE_FILE = "scene.xml"
+#: largest scene XML read, bytes
+MAX_XML_BYTES = 16 << 20
+#: largest mesh file read, bytes (the paper-size canyon's buildings are ~1 MB)
+MAX_MESH_BYTES = 1 << 30
 
 
 def write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
@@ -40,11 +46,34 @@ def write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
 
 
 def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a triangle mesh PLY (any encoding trimesh reads). -> vertices, faces"""
+    """Read a triangle mesh (PLY, or any format trimesh reads) and check it.
+
+    :returns: vertices [num_vertices, 3] float64, m; faces [num_faces, 3] int64
+    :raises InputError: naming the file when it is not a regular file, cannot be parsed, has no
+        triangle, a non-finite vertex or a face index outside the vertex list
+    """
     import trimesh
 
-    mesh = trimesh.load(str(path), force="mesh", process=False)
-    return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=np.int64)
+    name = str(path)
+    data = read_bytes(path, name, "mesh file", MAX_MESH_BYTES)
+    try:
+        mesh = trimesh.load(io.BytesIO(data), file_type=Path(path).suffix.lstrip(".").lower(),
+                            force="mesh", process=False)
+        vertices = np.asarray(mesh.vertices, dtype=float).reshape(-1, 3)
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+    except Exception as exc:  # noqa: BLE001 - a third-party parser on user bytes: any failure
+        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+        raise InputError(name, f"not a readable triangle mesh ({reason})") from None
+    if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
+        raise InputError(name, f"no triangles (faces of shape {faces.shape})")
+    if not np.all(np.isfinite(vertices)):
+        k = int(np.argmax(~np.all(np.isfinite(vertices), axis=1)))
+        raise InputError(name, f"vertex {k} is not finite ({vertices[k].tolist()})")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        k = int(np.argmax((faces < 0).any(axis=1) | (faces >= len(vertices)).any(axis=1)))
+        raise InputError(name, f"face {k} indexes vertex {faces[k].tolist()}, but the mesh has "
+                         f"{len(vertices)} vertices")
+    return vertices, faces
 
 
 def scene_bounds(canyon: UrbanCanyon, points_xy: np.ndarray, pad: float) -> tuple[float, ...]:
@@ -98,24 +127,44 @@ def scene_mesh_files(xml_path: str | Path, field: str = "scene.source") -> list[
 
     :raises InputError: if the file is missing, not XML, or references missing meshes
     """
+    root = _scene_root(xml_path, field)
     xml_path = Path(xml_path)
-    if not xml_path.is_file():
-        raise InputError(field, f"scene file {str(xml_path)!r} does not exist")
-    try:
-        root = ET.parse(xml_path).getroot()
-    except ET.ParseError as exc:
-        raise InputError(field, f"{str(xml_path)!r} is not valid XML ({exc})") from None
+    folder = xml_path.parent.resolve()
     files = []
     for shape in root.iter("shape"):
         for s in shape.iter("string"):
             if s.get("name") == "filename":
-                p = (xml_path.parent / s.get("value", "")).resolve()
-                if not p.is_file():
+                ref = check_path(s.get("value", ""), field)
+                p = (xml_path.parent / ref).resolve()
+                if not p.is_relative_to(folder):
+                    raise InputError(field, f"{str(xml_path)!r} references mesh {str(p)!r} "
+                                     "outside the scene's folder")
+                if not p.exists():  # anything but a regular file: read_ply says so
                     raise InputError(field, f"{str(xml_path)!r} references missing mesh {str(p)!r}")
                 files.append(p)
     if not files:
         raise InputError(field, f"{str(xml_path)!r} has no mesh shapes")
     return files
+
+
+def scene_itu_materials(xml_path: str | Path, field: str = "scene.source") -> list[str]:
+    """The ITU material types (``<bsdf type="itu-radio-material">``'s ``type``) an XML scene
+    uses, in the order they appear."""
+    out = []
+    for bsdf in _scene_root(xml_path, field).iter("bsdf"):
+        if bsdf.get("type") == "itu-radio-material":
+            for s in bsdf.iter("string"):
+                if s.get("name") == "type":
+                    out.append(s.get("value", ""))
+    return out
+
+
+def _scene_root(xml_path: str | Path, field: str) -> ET.Element:
+    data = read_bytes(xml_path, field, "scene file", MAX_XML_BYTES)
+    try:
+        return ET.fromstring(data)
+    except ET.ParseError as exc:
+        raise InputError(field, f"{str(xml_path)!r} is not valid XML ({exc})") from None
 
 
 def scene_digest(xml_path: str | Path) -> str:

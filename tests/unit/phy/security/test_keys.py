@@ -61,3 +61,68 @@ def test_wrong_key_type(tmp_path):
     with pytest.raises(InputError, match="Ed25519 private key") as exc:
         load_keys(tmp_path, [5])
     assert exc.value.field == str(path)
+
+
+def test_key_files_created_0600_all_or_none(tmp_path, monkeypatch):
+    # regression (issue 19): files were written 0644 and chmodded afterwards, one by one
+    import os
+    import stat
+
+    out = tmp_path / "k"
+    generate_keys(out, [0, 1])
+    for b in (0, 1):
+        p = key_paths(out, b)
+        for name in ("aes", "hmac", "sign"):
+            assert stat.S_IMODE(p[name].stat().st_mode) == 0o600
+        assert stat.S_IMODE(p["verify"].stat().st_mode) & 0o077 == 0o044 & ~_umask()
+    # an existing file of a later BS: nothing of the earlier ones is written
+    fresh = tmp_path / "fresh"
+    fresh.mkdir()
+    key_paths(fresh, 2)["hmac"].write_text("x")
+    with pytest.raises(InputError, match="exists"):
+        generate_keys(fresh, [1, 2])
+    assert sorted(f.name for f in fresh.iterdir()) == ["bs2.tag.hmac"]
+    # a write failing half-way leaves no key file and no temporary file
+    calls = []
+    real_fsync = os.fsync
+
+    def failing_fsync(fd):
+        calls.append(fd)
+        if len(calls) == 5:
+            raise OSError(28, "No space left on device")
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", failing_fsync)
+    with pytest.raises(InputError, match="No space left"):
+        generate_keys(tmp_path / "full", [0, 1])
+    assert list((tmp_path / "full").iterdir()) == []
+
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def test_bskeys_repr_shows_no_secret(tmp_path):
+    generate_keys(tmp_path, [3])
+    keys = load_keys(tmp_path, [3])[3]
+    text = repr(keys) + str(keys)
+    assert keys.aes_key.hex() not in text and repr(keys.aes_key) not in text
+    assert keys.hmac_key.hex() not in text and repr(keys.hmac_key) not in text
+    assert "Ed25519PrivateKey" not in text and "bs_id=3" in text
+
+
+def test_legacy_bare_hex_key_files_still_load(tmp_path):
+    generate_keys(tmp_path, [0], aes_bits=256)
+    p = key_paths(tmp_path, 0)
+    key = load_keys(tmp_path, [0])[0]
+    p["aes"].write_text(key.aes_key.hex() + "\n")
+    p["hmac"].write_text(key.hmac_key.hex() + "\n")
+    again = load_keys(tmp_path, [0], aes_bits=256)[0]
+    assert again.aes_key == key.aes_key and again.hmac_key == key.hmac_key
+    with pytest.raises(InputError, match="aes_key_bits is 128"):
+        load_keys(tmp_path, [0], aes_bits=128)
+
