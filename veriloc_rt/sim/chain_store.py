@@ -12,10 +12,11 @@ SHA-256 of the payload and the payload. A torn or damaged record ends the file: 
 everything after it are dropped (a kill mid-write tears the last record only).
 
 A payload holds one ``{cache key: ChainResult}`` dict without ``pickle`` (loading a pickle runs
-code): an ``.npz`` (``allow_pickle=False``) of the arrays and a JSON tree of everything else,
-where a dataclass is named by its class, which must be a dataclass of this package. Floats go
-through JSON's shortest round-trip text and arrays as raw bytes, so the results read back are
-bit for bit the ones computed, and a resumed run writes the same rows as an uninterrupted one.
+code): a JSON tree of the structure, where a dataclass is named by its class, which must be a
+dataclass of this package, followed by the arrays' raw bytes (dtype, shape and place in the
+tree). Floats go through their exact hex text and arrays as raw bytes, so the results read back
+are bit for bit the ones computed, and a resumed run writes the same rows as an uninterrupted
+one.
 """
 
 from __future__ import annotations
@@ -23,9 +24,9 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import importlib
-import io
 import json
 import logging
+import math
 import struct
 from pathlib import Path
 
@@ -49,13 +50,17 @@ def config_digest(cfg: Config) -> bytes:
     return hashlib.sha256(json.dumps(config_to_dict(cfg), sort_keys=True).encode()).digest()
 
 
-def _enc(obj, arrays: list):
+def _enc(obj, blob: list):
     if isinstance(obj, (np.ndarray, np.generic)):   # first: np.float64 is a float, np.str_ a str
         a = np.asarray(obj)
         if a.dtype.hasobject:
             raise TypeError("object arrays are not stored")
-        arrays.append(a)
-        return {"a" if isinstance(obj, np.ndarray) else "s": len(arrays) - 1}
+        fortran = bool(a.flags.f_contiguous and not a.flags.c_contiguous)  # as np.save keeps it
+        data = (a.T if fortran else a).tobytes()
+        offset = sum(len(b) for b in blob)
+        blob.append(data)
+        return {"a" if isinstance(obj, np.ndarray) else "s":
+                [a.dtype.str, list(a.shape), offset, len(data), fortran]}
     if obj is None or isinstance(obj, (bool, str)):
         return obj
     if isinstance(obj, int):
@@ -63,15 +68,15 @@ def _enc(obj, arrays: list):
     if isinstance(obj, float):
         return {"f": obj.hex()}
     if isinstance(obj, list):
-        return [_enc(x, arrays) for x in obj]
+        return [_enc(x, blob) for x in obj]
     if isinstance(obj, tuple):
-        return {"t": [_enc(x, arrays) for x in obj]}
+        return {"t": [_enc(x, blob) for x in obj]}
     if isinstance(obj, dict):
-        return {"d": [[_enc(k, arrays), _enc(v, arrays)] for k, v in obj.items()]}
+        return {"d": [[_enc(k, blob), _enc(v, blob)] for k, v in obj.items()]}
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         cls = type(obj)
         return {"c": f"{cls.__module__}:{cls.__qualname__}",
-                "v": {f.name: _enc(getattr(obj, f.name), arrays) for f in dataclasses.fields(obj)}}
+                "v": {f.name: _enc(getattr(obj, f.name), blob) for f in dataclasses.fields(obj)}}
     raise TypeError(f"cannot store a {type(obj).__name__}")
 
 
@@ -87,11 +92,25 @@ def _dataclass(name: str) -> type:
     return obj
 
 
-def _dec(node, arrays):
+def _array(spec, blob: bytes) -> np.ndarray:
+    dtype_str, shape, offset, size, fortran = spec
+    dtype = np.dtype(dtype_str)
+    if dtype.hasobject:
+        raise ValueError("object arrays are not stored")
+    shape = tuple(int(n) for n in shape)
+    if offset < 0 or offset + size > len(blob) or size != dtype.itemsize * math.prod(shape):
+        raise ValueError("array outside the record")
+    a = np.frombuffer(blob, dtype, count=size // dtype.itemsize if dtype.itemsize else 0,
+                      offset=offset)
+    a = a.reshape(shape[::-1]).T if fortran else a.reshape(shape)
+    return a.copy(order="K")   # writable, its own memory, the stored layout
+
+
+def _dec(node, blob: bytes):
     if node is None or isinstance(node, (bool, str)):
         return node
     if isinstance(node, list):
-        return [_dec(x, arrays) for x in node]
+        return [_dec(x, blob) for x in node]
     if "c" in node:
         cls = _dataclass(node["c"])
         obj = cls.__new__(cls)   # the fields as stored, past __init__/__post_init__
@@ -99,7 +118,7 @@ def _dec(node, arrays):
         if set(node["v"]) != names:
             raise ValueError(f"{node['c']}: fields {sorted(node['v'])}, expected {sorted(names)}")
         for k, v in node["v"].items():
-            object.__setattr__(obj, k, _dec(v, arrays))
+            object.__setattr__(obj, k, _dec(v, blob))
         return obj
     (tag, val), = node.items()
     if tag == "i":
@@ -107,31 +126,32 @@ def _dec(node, arrays):
     if tag == "f":
         return float.fromhex(val)
     if tag == "a":
-        return arrays[f"a{val}"]
+        return _array(val, blob)
     if tag == "s":
-        return arrays[f"a{val}"][()]
+        return _array(val, blob)[()]
     if tag == "t":
-        return tuple(_dec(x, arrays) for x in val)
+        return tuple(_dec(x, blob) for x in val)
     if tag == "d":
-        return {_dec(k, arrays): _dec(v, arrays) for k, v in val}
+        return {_dec(k, blob): _dec(v, blob) for k, v in val}
     raise ValueError(f"unknown node {tag!r}")
 
 
 def encode(obj) -> bytes:
     """``obj`` (None, bool, int, float, str, NumPy arrays and scalars, lists, tuples, dicts and
-    dataclasses of this package, nested) as bytes, without pickle."""
-    arrays: list = []
-    tree = json.dumps(_enc(obj, arrays), separators=(",", ":")).encode()
-    buf = io.BytesIO()
-    np.savez(buf, tree=np.frombuffer(tree, np.uint8), **{f"a{k}": a for k, a in enumerate(arrays)})
-    return buf.getvalue()
+    dataclasses of this package, nested) as bytes, without pickle: the length of a JSON tree
+    (8 bytes, big-endian), the tree, then the arrays' raw bytes, which the tree locates."""
+    blob: list = []
+    tree = json.dumps(_enc(obj, blob), separators=(",", ":")).encode()
+    return b"".join([_HEAD.pack(len(tree)), tree, *blob])
 
 
 def decode(data: bytes):
-    """The object :func:`encode` wrote. Raises ValueError (or OSError, KeyError) on bad data."""
-    with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    return _dec(json.loads(arrays.pop("tree").tobytes()), arrays)
+    """The object :func:`encode` wrote. Raises ValueError (or KeyError, TypeError) on bad data."""
+    (size,) = _HEAD.unpack_from(data, 0)
+    start = _HEAD.size + size
+    if start > len(data):
+        raise ValueError("tree outside the record")
+    return _dec(json.loads(data[_HEAD.size:start]), memoryview(data)[start:])
 
 
 class ChainStore:
