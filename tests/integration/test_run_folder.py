@@ -270,7 +270,8 @@ def test_killed_runs_resume_to_the_same_bytes_fast(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sig, workers", [(signal.SIGKILL, 2), (signal.SIGINT, 2)])
+@pytest.mark.parametrize("sig, workers", [(signal.SIGKILL, 2), (signal.SIGINT, 2)],
+                         ids=["SIGKILL", "SIGINT"])
 def test_killed_runs_resume_to_the_same_bytes(tmp_path, sig, workers):
     cfg = tmp_path / "c.json"
     cfg.write_text(json.dumps(dict(UMA, trajectory={"num_points": 12},
@@ -289,3 +290,46 @@ def test_killed_ray_traced_runs_resume_to_the_same_bytes(tmp_path):
     cfg = tmp_path / "c.json"
     cfg.write_text(json.dumps(data))
     killed_and_resumed(tmp_path, cfg, kills=3, seed=7, workers=2, sig=signal.SIGKILL)
+
+
+@pytest.mark.slow
+@pytest.mark.raytrace
+def test_ctrl_c_during_ray_tracing_then_resume_reuses_the_traced_calls(tmp_path):
+    """Issue #19: Ctrl-C while tracing said 'add --resume', then --resume refused ('no
+    run.json'). Now the resumed run finds every call traced before the stop in the cache (one
+    hit each) and traces only the others: hits + calls = the calls of the whole plan."""
+    data = json.loads((ROOT / "configs" / "ci-tiny.json").read_text())
+    data["trajectory"]["num_points"] = 10
+    # the least work a PathSolver call may take: the 50 links go in several calls
+    data["propagation"]["raytrace"].update(cache_dir=str(tmp_path / "cache"), work_per_call=100_000)
+    cfg = tmp_path / "c.json"
+    cfg.write_text(json.dumps(data))
+    out = tmp_path / "o"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    base = [sys.executable, "-m", "veriloc_rt.cli", "run", str(cfg), "--workers", "1"]
+    p = subprocess.Popen(base + ["--out", str(out)], cwd=tmp_path, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    entries = tmp_path / "cache" / "raytrace"
+    deadline = time.monotonic() + 300
+    while p.poll() is None and not any(entries.glob("*.npz")):
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 130, err
+    assert "add --resume" in err
+    assert json.loads((out / "run.json").read_text())["status"] == "running"
+    traced_before = len(list(entries.glob("*.npz")))
+    r = subprocess.run(base + ["--out", str(out), "--resume"], cwd=tmp_path, env=env,
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    stats = json.loads((out / "propagation_summary.json").read_text())["raytrace_stats"]
+    assert stats["cache_hits"] == traced_before
+    assert stats["cache_hits"] > 0 and stats["calls"] > 0    # stopped while tracing
+    # the whole plan, traced once more from the now complete cache: all hits
+    r = subprocess.run(base + ["--out", str(tmp_path / "again")], cwd=tmp_path, env=env,
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    again = json.loads((tmp_path / "again" / "propagation_summary.json").read_text())
+    assert again["raytrace_stats"]["calls"] == 0
+    assert again["raytrace_stats"]["cache_hits"] == stats["cache_hits"] + stats["calls"]
