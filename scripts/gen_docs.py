@@ -398,6 +398,15 @@ def outputs_md() -> str:
            "| `<scenario>_map.png` | true and estimated path, BSs, the adversary's path |",
            "| `scene_top_view.png` | the scene from above: buildings, BSs, trajectory |",
            "| `scene/` | the scene the run used (`scene.xml`, `meshes/*.ply`) |",
+           "| `chains.bin` | every point's chain results, appended as they are computed, each "
+           "record with a SHA-256: `--resume` reuses them (the attack scenarios' chains that "
+           "`none` computes included), so a resumed run computes only what no run computed "
+           "([resume](running.md#resume-the-lock-and-the-propagation-cache)) |",
+           "| `.veriloc-run.lock`, `.veriloc-run.owner` | the folder's lock (held while a run "
+           "writes into it) and the process holding it (removed when it ends) |",
+           "", "Every file but the CSVs and `chains.bin` (appended point by point, a torn last "
+           "line or record dropped on resume) is written to a temporary file and renamed over "
+           "the old one: a stopped run leaves each file either complete or as it was.",
            "", "### `<scenario>_results.csv`", "",
            f"The first columns are exactly `{first}`, as the paper's figures read them. Floats "
            "are written exactly (shortest round-trip text), so a resumed run replays the saved "

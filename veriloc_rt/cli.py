@@ -90,7 +90,7 @@ def cmd_run(args) -> int:
     if cfg.run.realisations > 1:
         return _run_montecarlo(cfg, out, args, workers)
     res = run(cfg, out, progress=ProgressBar(), resume=args.resume, workers=workers,
-              scheduler=args.scheduler)
+              scheduler=args.scheduler, force=args.force)
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
@@ -129,7 +129,7 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
     print(f"Monte Carlo: {n} realisations of {cfg.trajectory.num_points} points, {where}",
           flush=True)
     res = run_montecarlo(cfg, out, progress=ProgressBar(), workers=workers,
-                         scheduler=args.scheduler, resume=args.resume)
+                         scheduler=args.scheduler, resume=args.resume, force=args.force)
     print(format_montecarlo(res.metrics))
     t = res.timing_s
     print(f"time: {t['total']:.1f} s wall, {t['realisations_total']:.1f} s summed over the "
@@ -334,6 +334,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "run; results do not depend on it")
     r.add_argument("--resume", action="store_true",
                    help="keep the points already in --out (same config) and continue after them")
+    r.add_argument("--force", action="store_true",
+                   help="write into a non-empty --out that holds no run of this config "
+                   "(replacing the run files there)")
     r.set_defaults(func=cmd_run)
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")
@@ -393,8 +396,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("\ninterrupted; finished ray-tracing batches are kept in the cache and finished "
-              "points in the CSVs: add --resume to continue", file=sys.stderr)
+        print("\ninterrupted; finished ray-tracing batches are kept in the cache, finished "
+              "points and chain results in --out: add --resume to continue", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - one line for the user, details with -vv
         from .backend import BackendError

@@ -25,6 +25,12 @@ direction; :mod:`~veriloc_rt.propagation.polarization`). In a
 canyon the roof edges that carry almost every BS link are a few metres from the UE, so they are
 sampled densely by few rays, whereas rays launched from a BS hundreds of metres away must be
 counted in millions to hit them.
+
+The cache (``raytrace.cache_dir``) holds one ``.npz`` per PathSolver call, named by a hash of
+everything that decides its result, with a checksum over that key and the arrays
+(:func:`entry_checksum`). An entry that fails it or holds non-finite values is never used: it
+is moved aside into ``quarantine/`` with a warning and the call is traced again
+(:func:`read_cache_entry`).
 """
 
 from __future__ import annotations
@@ -44,14 +50,15 @@ import numpy as np
 from ..config import PropagationConfig, RayTracingConfig
 from ..config.fields import to_dict
 from ..constants import SPEED_OF_LIGHT
+from ..fileio import atomic_output
 from ..world.scene.export import scene_digest
 from .cir import ADVERSARY_TX, CIR, INTERACTION_NONE, NO_TX, array_response, doppler_shift, ula_element_positions
 from .sionna_rt import RawPaths, sampled_diffraction
 
 log = logging.getLogger(__name__)
 
-#: Bump when the cached array layout or the tracing recipe changes
-CACHE_VERSION = 7
+#: Bump when the cached array layout or the tracing recipe changes (8: entries carry a checksum)
+CACHE_VERSION = 8
 
 #: RayTracingConfig fields that do not change what a PathSolver call returns (the cache holds
 #: polarimetric paths; antenna polarizations are applied after it)
@@ -223,11 +230,10 @@ class LinkTracer:
     def _call(self, s_pos: np.ndarray, d_pos: np.ndarray, pairs: np.ndarray, rays: int) -> RawPaths:
         key = self._call_key(s_pos, d_pos, pairs, rays) if self.cache_dir else None
         if key:
-            f = self.cache_dir / f"{key}.npz"
-            if f.is_file():
+            cached = read_cache_entry(self.cache_dir / f"{key}.npz", key, len(pairs))
+            if cached is not None:
                 self.stats["cache_hits"] += 1
-                with np.load(f) as data:
-                    return RawPaths.from_npz(data)
+                return cached
         t0 = time.perf_counter()
         tracer = self._tracer_obj()
         tracer.max_paths_per_src = min(self.fid.max_candidates_per_source * len(d_pos), 10**6)
@@ -236,11 +242,84 @@ class LinkTracer:
         self.stats["calls"] += 1
         self.stats["links_traced"] += len(pairs)
         if key:
-            self.cache_dir.mkdir(parents=True, exist_ok=True)
-            tmp = self.cache_dir / f".{key}.{os.getpid()}.tmp.npz"
-            np.savez(tmp, **raw.to_npz())
-            os.replace(tmp, self.cache_dir / f"{key}.npz")
+            write_cache_entry(self.cache_dir / f"{key}.npz", key, raw)
         return raw
+
+
+def entry_checksum(key: str, arrays: dict[str, np.ndarray]) -> np.ndarray:
+    """SHA-256 of a cache entry: its key (so an entry copied under another key fails) and
+    every :attr:`RawPaths.FIELDS` array's dtype, shape and bytes. -> [32] uint8"""
+    h = hashlib.sha256(key.encode())
+    for f in RawPaths.FIELDS:
+        a = np.ascontiguousarray(arrays[f])
+        h.update(f"{f}:{a.dtype.str}:{a.shape}".encode())
+        h.update(a.tobytes())
+    return np.frombuffer(h.digest(), np.uint8)
+
+
+def write_cache_entry(path: Path, key: str, raw: RawPaths) -> None:
+    """Store ``raw`` with its :func:`entry_checksum`, atomically; a cache that cannot be
+    written costs the next run a trace, not this one: a warning."""
+    arrays = raw.to_npz()
+    try:
+        with atomic_output(path) as tmp:
+            np.savez(tmp, checksum=entry_checksum(key, arrays), **arrays)
+    except OSError as exc:
+        log.warning("ray-tracing cache: cannot write %s (%s); continuing without it", path, exc)
+
+
+def _verified(data, key: str, num_links: int) -> RawPaths | str:
+    """A loaded cache entry's paths, or what is wrong with it."""
+    missing = [f for f in (*RawPaths.FIELDS, "checksum") if f not in data.files]
+    if missing:
+        return f"missing {', '.join(missing)}"
+    arrays = {f: data[f] for f in RawPaths.FIELDS}
+    if not np.array_equal(data["checksum"], entry_checksum(key, arrays)):
+        return "checksum mismatch"
+    raw = RawPaths.from_npz(arrays)
+    if raw.num_links != num_links:
+        return f"{raw.num_links} links, expected {num_links}"
+    v = raw.valid
+    if not (all(np.all(np.isfinite(x[v])) for x in (raw.tau, raw.a, raw.theta_r, raw.phi_r,
+                                                       raw.theta_t, raw.phi_t))
+            and np.all(raw.tau[v] >= 0)):
+        return "non-finite or negative values in valid paths"
+    return raw
+
+
+def read_cache_entry(path: Path, key: str, num_links: int) -> RawPaths | None:
+    """The verified cache entry at ``path`` (None: none, or damaged).
+
+    A damaged entry (unreadable, truncated, a checksum that does not match its content and key,
+    the wrong number of links, NaNs or negative delays in valid paths) is moved aside into
+    ``quarantine/`` next to it, with a warning, and the caller traces the call again.
+    """
+    if not path.is_file():
+        return None
+    try:
+        with open(path, "rb") as fh:   # closed here whatever np.load makes of it
+            data = np.load(fh, allow_pickle=False)
+            if not hasattr(data, "files"):
+                found = "not an .npz archive"
+            else:
+                with data:
+                    found = _verified(data, key, num_links)
+    except Exception as exc:  # noqa: BLE001 - any damage (zip, zlib, header, EOF) is a miss
+        found = f"unreadable: {type(exc).__name__}: {exc}"
+    if isinstance(found, RawPaths):
+        return found
+    problem = found
+    quarantine = path.parent / "quarantine"
+    dest = quarantine / f"{path.stem}.{int(time.time())}.{os.getpid()}.npz"
+    try:
+        quarantine.mkdir(exist_ok=True)
+        os.replace(path, dest)
+        where = f"moved to {dest}"
+    except OSError as exc:
+        where = f"could not be moved aside ({exc})"
+    log.warning("ray-tracing cache: %s is damaged (%s); %s, tracing the call again",
+                path, problem, where)
+    return None
 
 
 def _row(raw: RawPaths, j: int) -> RawPaths:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from veriloc_rt.errors import InputError, bad_value
+from veriloc_rt.fileio import atomic_output
 
 from ..detectors.outcomes import DETECTORS, OUTCOMES
 from .results import CSV_COLUMNS
@@ -51,7 +52,8 @@ def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.
         yield fig, axes
         if title:
             fig.suptitle(title)
-        fig.savefig(Path(path))
+        with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
+            fig.savefig(tmp)
         log.info("wrote %s", path)
     finally:
         plt.close(fig)

@@ -24,11 +24,11 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
+from ..fileio import atomic_output
 from ..detectors.outcomes import DETECTORS, OUTCOMES, PointRow
 
 __all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "scenario_metrics", "results_path"]
@@ -97,13 +97,11 @@ class ResultsWriter:
     def __init__(self, path: str | Path, keep: list[PointRow] | None = None):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_suffix(".csv.tmp")
-        with open(tmp, "w", newline="") as fh:
+        with atomic_output(self.path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
             w.writerow(CSV_COLUMNS)
             for r in keep or ():
                 w.writerow(row_to_fields(r))
-        os.replace(tmp, self.path)
         self._fh = open(self.path, "a", newline="")
         self._w = csv.writer(self._fh, lineterminator="\n")
 

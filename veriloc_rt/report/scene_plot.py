@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fileio import atomic_output
+
 
 def plot_top_view(geometry, path: str | Path, title: str | None = None,
                   estimated_xy: np.ndarray | None = None) -> Path:
@@ -71,6 +73,9 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    try:
+        with atomic_output(path) as tmp:
+            fig.savefig(tmp)
+    finally:
+        plt.close(fig)
     return path

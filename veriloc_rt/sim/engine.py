@@ -3,9 +3,12 @@
 :func:`run` builds the scene and trajectories, ray-traces (or draws) every link once, then
 evaluates each configured scenario (``none``, ``fbs``, ``meaconing``, ``jamming``) point by
 point with :class:`~veriloc_rt.sim.runner.ScenarioRunner`, writing each row to
-``<scenario>_results.csv`` as soon as it exists. ``resume=True`` keeps the rows already on disk
-(the config must be the one that produced them) and continues after them; the result is the
-same as an uninterrupted run. At the end it writes ``metrics.json``, ``run.json`` and the plots.
+``<scenario>_results.csv`` as soon as it exists, and each point's chain results to the run
+folder's chain store (:mod:`~veriloc_rt.sim.chain_store`). ``resume=True`` keeps the rows and
+chain results already on disk (the config must be the one that produced them) and continues
+after them; the result is the same as an uninterrupted run. At the end it writes
+``metrics.json``, ``run.json`` and the plots. The folder's lock, the checks before a run writes
+into it and ``run.json``: :mod:`~veriloc_rt.sim.run_folder`.
 
 Executors: the detectors carry state from point to point and run here, in order; the chains of
 the points ahead go to forked local processes (``workers``) or, in trajectory chunks, to a Dask
@@ -19,6 +22,7 @@ import json
 import logging
 import resource
 import time
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -27,6 +31,7 @@ import numpy as np
 
 from ..config import Config
 from ..errors import InputError
+from ..fileio import atomic_write_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import uma_propagation
 from ..report import plots
@@ -37,7 +42,9 @@ from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
 from .checks import check_run_inputs, warn_unreachable
 from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
-from .run_folder import check_resume, run_keys, write_run_json
+from .chain_store import ChainStore, config_digest
+from .run_folder import (CHAIN_FILE, check_fresh, check_resume, clear_run_files, locked, run_keys,
+                         write_run_json)
 from .runner import ScenarioRunner
 
 log = logging.getLogger(__name__)
@@ -105,61 +112,87 @@ def _peak_rss_mib() -> dict:
 
 
 def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
-        resume: bool = False, workers: int = 1, scheduler=None) -> Results:
+        resume: bool = False, workers: int = 1, scheduler=None, force: bool = False) -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
 
     One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
 
+    The run holds ``out_dir``'s lock while it works (another run there is refused). A new run
+    needs an empty ``out_dir`` or one holding a run of the same config (replaced), unless
+    ``force``; nothing in it changes before the inputs are checked and the geometry is built.
+
     :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
-    :param resume: keep the rows already in ``out_dir`` and continue after them
+    :param resume: keep the rows and chain results already in ``out_dir`` and continue after
+        them (also after a stop during ray tracing: ``run.json`` is written before it)
     :param workers: processes computing the per-point chains (forked; the detectors, which
         carry state from point to point, run in this process); same results for any number
     :param scheduler: compute the chains on a Dask cluster instead, in trajectory chunks: a
         scheduler address (``tcp://host:8786``) or a connected ``distributed.Client``; same
         results as the serial run. Not together with ``workers > 1``.
+    :param force: write into a non-empty ``out_dir`` that holds no run of this config
+    :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``
     """
     check_workers(workers, scheduler)
-    with scheduler_client(scheduler) as client:  # a bad address fails now, before heavy work
-        return _run(cfg, out_dir, progress, resume, workers, client)
+    out = Path(out_dir) if out_dir is not None else None
+    if resume and out is None:
+        raise ValueError("Argument `resume` needs `out_dir`")
+    if resume:
+        check_resume(out, cfg)   # before the lock creates a missing folder; again under it
+    with ExitStack() as stack:
+        # a bad address fails now, before the folder is touched
+        client = stack.enter_context(scheduler_client(scheduler))
+        if out is not None:
+            stack.enter_context(locked(out))
+            if resume:
+                check_resume(out, cfg)
+            else:
+                check_fresh(out, cfg, force)
+        return _run(cfg, out, progress, resume, workers, client)
 
 
-def _run(cfg: Config, out_dir, progress: Progress | None, resume: bool, workers: int,
+def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
          client) -> Results:
     timing: dict = {}
     t0 = time.perf_counter()
-    out = Path(out_dir) if out_dir is not None else None
-    if resume:
-        if out is None:
-            raise ValueError("Argument `resume` needs `out_dir`")
-        check_resume(out, cfg)
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
     geometry = build_geometry(cfg, scene_dir)
     check_run_inputs(cfg, geometry)  # every input checked now, before any tracing
     keys = run_keys(cfg, len(geometry.bs_pos))
     timing["geometry"] = time.perf_counter() - t0
+    fields = {"scene_xml": str(geometry.scene_xml)}
+    if out:
+        if not resume:
+            clear_run_files(out)
+        # before tracing: a run stopped there can be resumed
+        write_run_json(out, cfg, "running", timing, fields)
+        if not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
+            plot_top_view(geometry, out / "scene_top_view.png")
     t1 = time.perf_counter()
     prop = compute_propagation(cfg, geometry, progress)
     timing["propagation"] = time.perf_counter() - t1
     warn_unreachable(prop.bs_ue.has_path())
     summary = propagation_summary(geometry, prop)
     if out:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "propagation_summary.json").write_text(json.dumps(summary, indent=2))
-        write_run_json(out, cfg, "running", timing, {"scene_xml": str(geometry.scene_xml)})
+        atomic_write_text(out / "propagation_summary.json", json.dumps(summary, indent=2))
+        write_run_json(out, cfg, "running", timing, fields)
 
     runner = ScenarioRunner(cfg, geometry, prop, keys)
     pool = None
+    store = ChainStore(out / CHAIN_FILE, config_digest(cfg), resume) if out else None
     try:
         if client is not None:
             pool = DaskChains(runner, client)
             timing["scheduler"] = client.scheduler.address
         elif workers > 1:
             pool = ForkPool(runner, workers)
-        rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing)
+        rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing, store)
     except BaseException:
         if pool is not None:
             pool.terminate()
         raise
+    finally:
+        if store is not None:
+            store.close()
     if pool is not None:
         pool.close()
     timing.update({f"{k}_total": v for k, v in runner.timing.items()})
@@ -169,27 +202,54 @@ def _run(cfg: Config, out_dir, progress: Progress | None, resume: bool, workers:
     metrics["timing_s"] = timing
     metrics["propagation_model"] = cfg.propagation.model
     if out:
-        (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
-        _write_plots(out, cfg, geometry, metrics)
-        write_run_json(out, cfg, "complete", timing, {"scene_xml": str(geometry.scene_xml)})
+        atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2))
+        _write_plots(out, metrics)
+        write_run_json(out, cfg, "complete", timing, fields)
     return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
 
 
+def _saved_rows(out: Path, scenario: str, n: int) -> list:
+    """The rows of ``scenario`` already in ``out`` (resume)."""
+    path = results_path(out, scenario)
+    if not path.exists():
+        return []
+    done = read_rows(path)[:n]
+    if [r.index for r in done] != list(range(len(done))):
+        raise InputError("--resume", f"{path} is not a prefix of this run's points; use a new "
+                         "--out")
+    return done
+
+
+def _restore_chains(runner: ScenarioRunner, store: ChainStore, saved: dict) -> None:
+    """The stored chain results a resumed run still needs, into ``runner`` (an attack point's
+    result is used once: those of points already in their scenario's CSV are dropped)."""
+    kept = 0
+    for results in store.loaded:
+        need = {ck: r for ck, r in results.items()
+                if len(ck) == 2 or ck[2] >= len(saved.get(ck[1], ()))}
+        runner.store_chains(need)
+        kept += len(need)
+    store.loaded.clear()
+    log.info("resume: %d stored chain results reused", kept)
+
+
 def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
-                   progress: Progress | None, timing: dict) -> tuple[dict, dict]:
-    """Every scenario point by point: chains from ``pool`` (None: here), detectors here."""
+                   progress: Progress | None, timing: dict,
+                   store: ChainStore | None = None) -> tuple[dict, dict]:
+    """Every scenario point by point: chains from ``pool`` (None: here), detectors here; each
+    point's new chain results go to ``store`` before its row is written."""
     n = runner.geo.num_points
     rows: dict = {}
     metrics: dict = {"scenarios": {}}
+    saved = ({s: _saved_rows(out, s, n) for s in cfg.run.scenarios} if resume else {})
+    if store is not None and resume:
+        _restore_chains(runner, store, saved)
     for scenario in cfg.run.scenarios:
         t_s = time.perf_counter()
         runner.reset()
-        done: list = []
-        if resume and results_path(out, scenario).exists():
-            done = read_rows(results_path(out, scenario))[:n]
-            if [r.index for r in done] != list(range(len(done))):
-                raise InputError("--resume", f"{results_path(out, scenario)} is not a prefix of "
-                                 "this run's points; use a new --out")
+        done: list = saved.pop(scenario, [])
+        complete = len(done) == n
+        if done:
             runner.replay(done)
             log.info("%s: resuming after %d of %d points", scenario, len(done), n)
         writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
@@ -206,6 +266,8 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
                 if i in todo_set:
                     j, results, dt = next(ahead)
                     assert j == i
+                    if store is not None:
+                        store.append(results)
                     runner.store_chains(results)
                     for k, v in dt.items():
                         runner.timing[k] += v
@@ -223,22 +285,31 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
             if writer:
                 writer.close()
         rows[scenario] = done
+        # plots as soon as a scenario is done; a resumed run keeps those of a scenario that
+        # was complete already (written by this run: a new run clears them)
+        if out and not (complete and all((out / f"{scenario}_{k}.png").exists()
+                                         for k in ("timeseries", "map"))):
+            _scenario_plots(out, cfg, runner.geo, scenario)
         metrics["scenarios"][scenario] = scenario_metrics(done, scenario)
         timing[f"scenario_{scenario}"] = time.perf_counter() - t_s
     return rows, metrics
 
 
-def _write_plots(out: Path, cfg: Config, geometry: Geometry, metrics: dict) -> None:
-    plot_top_view(geometry, out / "scene_top_view.png")
+def _write_plots(out: Path, metrics: dict) -> None:
+    """The run's summary plots (the scene's and each scenario's are written as they exist)."""
     plots.plot_outcomes(metrics, out / "outcomes.png")
     plots.plot_detection_rates(metrics, out / "detection_rates.png", reference=PAPER_RATES,
                                title="correct decisions (dashed: the paper, on UMa)")
+
+
+def _scenario_plots(out: Path, cfg: Config, geometry: Geometry, scenario: str) -> list[Path]:
+    """A finished scenario's time series and map, from its CSV."""
     window = cfg.run.attack_points(geometry.num_points)
     idx = np.flatnonzero(window)
     span = (int(idx[0]), int(idx[-1]) + 1) if idx.size else None  # 0-based, stop excluded
-    for scenario in cfg.run.scenarios:
-        data = plots.read_results_csv(out / f"{scenario}_results.csv")
-        plots.plot_time_series(data, out / f"{scenario}_timeseries.png",
-                               span if scenario != "none" else None, title=scenario)
-        plots.plot_trajectory_map(data, geometry.bs_pos, out / f"{scenario}_map.png",
-                                  adversary_xy=geometry.adversary.pos[:, :2], title=scenario)
+    files = [out / f"{scenario}_timeseries.png", out / f"{scenario}_map.png"]
+    data = plots.read_results_csv(out / f"{scenario}_results.csv")
+    plots.plot_time_series(data, files[0], span if scenario != "none" else None, title=scenario)
+    plots.plot_trajectory_map(data, geometry.bs_pos, files[1],
+                              adversary_xy=geometry.adversary.pos[:, :2], title=scenario)
+    return files

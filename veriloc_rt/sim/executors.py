@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import logging
 import multiprocessing as mp
+import os
 import signal
+import sys
 import threading
 import time
 import uuid
@@ -53,6 +55,9 @@ def scheduler_client(scheduler):
             own.close()
 
 
+#: prctl(2) option: the signal a process gets when its parent dies (linux/prctl.h)
+PR_SET_PDEATHSIG = 1
+
 #: the runner a forked worker process uses (set by :class:`ForkPool` before forking)
 _WORKER: ScenarioRunner | None = None
 
@@ -88,7 +93,8 @@ class ForkPool:
     def __init__(self, runner: ScenarioRunner, workers: int):
         global _WORKER
         _WORKER = runner
-        self.pool = mp.get_context("fork").Pool(workers, initializer=_ignore_sigint)
+        self.pool = mp.get_context("fork").Pool(workers, initializer=_init_worker,
+                                                initargs=(os.getpid(),))
 
     def imap(self, scenario: str, points: list[int]):
         return self.pool.imap(_work, [(scenario, i) for i in points], chunksize=2)
@@ -101,9 +107,20 @@ class ForkPool:
         self.pool.terminate()
 
 
-def _ignore_sigint() -> None:
-    """Workers leave Ctrl-C to the parent, which terminates them and keeps the finished rows."""
+def _init_worker(parent: int) -> None:
+    """Workers leave Ctrl-C to the parent, which terminates them and keeps the finished rows;
+    and they end with the parent. A killed parent (SIGKILL) cannot terminate them, and a pool
+    worker whose parent is gone waits for tasks for ever, holding what it inherited: the run
+    folder's lock among them, which would refuse the ``--resume`` that follows. On Linux the
+    kernel kills them then (``prctl(PR_SET_PDEATHSIG)``, prctl(2))."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+        if os.getppid() != parent:   # the parent died before the request took effect
+            os.kill(os.getpid(), signal.SIGKILL)
 
 
 #: on a Dask worker: the runners of the runs it computes chunks for, by (token, thread id)

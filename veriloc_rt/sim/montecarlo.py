@@ -37,11 +37,13 @@ import numpy as np
 
 from ..config import Config
 from ..detectors.outcomes import DETECTORS, OUTCOMES
+from ..fileio import atomic_output, atomic_write_text
 from ..report import plots
 from ..rng import stream
 from .engine import Progress, run
 from .executors import check_workers, local_cluster, scheduler_client
-from .run_folder import check_resume, same_config, write_run_json
+from .run_folder import (check_fresh, check_resume, clear_run_files, locked, same_config,
+                         write_run_json)
 
 log = logging.getLogger(__name__)
 
@@ -128,7 +130,8 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
     return out
 
 
-def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | None = None) -> dict:
+def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | None = None,
+                 force: bool = False) -> dict:
     """One realisation (a task): its metrics.json content. With ``resume``, a realisation
     already complete with this config is read back; a partial one continues."""
     out = Path(out_dir)
@@ -139,11 +142,12 @@ def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | N
             log.info("%s: complete, kept", out)
             return json.loads((out / "metrics.json").read_text())
         return run(cfg, out, progress=progress, resume=True).metrics
-    return run(cfg, out, progress=progress).metrics
+    return run(cfg, out, progress=progress, force=force).metrics
 
 
 def run_montecarlo(cfg: Config, out_dir: str | Path, progress: Progress | None = None,
-                   workers: int = 1, scheduler=None, resume: bool = False) -> MonteCarloResults:
+                   workers: int = 1, scheduler=None, resume: bool = False,
+                   force: bool = False) -> MonteCarloResults:
     """Run the ``cfg.run.realisations`` realisations and aggregate them (module docstring).
 
     :param progress: ``progress(stage, done, total)``: per scenario and point when serial,
@@ -153,34 +157,43 @@ def run_montecarlo(cfg: Config, out_dir: str | Path, progress: Progress | None =
     :param scheduler: an existing Dask cluster instead: address or connected
         ``distributed.Client`` (not together with ``workers > 1``)
     :param resume: keep the complete realisations in ``out_dir`` and continue the others
+    :param force: write into a non-empty ``out_dir`` that holds no run of this config (as
+        :func:`~veriloc_rt.sim.engine.run`; so do the realisations)
     """
     check_workers(workers, scheduler)
-    with scheduler_client(scheduler) as client:  # a bad address fails now, before any work
-        return _montecarlo(cfg, Path(out_dir).resolve(), progress, workers, client, resume)
+    out = Path(out_dir).resolve()
+    if resume:
+        check_resume(out, cfg)   # before the lock creates a missing folder; again under it
+    # a bad address fails now, before the folder is touched
+    with scheduler_client(scheduler) as client, locked(out):
+        if resume:
+            check_resume(out, cfg)
+        else:
+            check_fresh(out, cfg, force)
+        return _montecarlo(cfg, out, progress, workers, client, resume, force)
 
 
 def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int, client,
-                resume: bool) -> MonteCarloResults:
+                resume: bool, force: bool) -> MonteCarloResults:
     n = cfg.run.realisations
-    if resume:
-        check_resume(out, cfg)
     width = max(3, len(str(n - 1)))
     reals = [{"index": r, "config": realisation_config(cfg, r),
               "dir": out / f"realisation_{r:0{width}d}"} for r in range(n)]
     t0 = time.perf_counter()
-    out.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        clear_run_files(out)
     write_run_json(out, cfg, "running", {}, _listing(reals), versions=MC_VERSIONS)
     if client is not None:
-        metrics = _on_dask(client, reals, resume, progress)
+        metrics = _on_dask(client, reals, resume, progress, force)
     elif workers > 1:
         with local_cluster(min(workers, n)) as own:
-            metrics = _on_dask(own, reals, resume, progress)
+            metrics = _on_dask(own, reals, resume, progress, force)
     else:
         metrics = []
         for real in reals:
             cb = ((lambda s, d, t, r=real["index"]: progress(f"{r + 1}/{n} {s}", d, t))
                   if progress else None)
-            metrics.append(_realisation(real["config"], str(real["dir"]), resume, cb))
+            metrics.append(_realisation(real["config"], str(real["dir"]), resume, cb, force))
             log.info("realisation %d of %d done", real["index"] + 1, n)
     agg = aggregate(metrics)
     timing = _timing(metrics, time.perf_counter() - t0)
@@ -192,7 +205,7 @@ def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int,
     agg["propagation_model"] = cfg.propagation.model
     for real, m in zip(reals, metrics):
         real["metrics"] = m
-    (out / "metrics.json").write_text(json.dumps(agg, indent=2))
+    atomic_write_text(out / "metrics.json", json.dumps(agg, indent=2))
     write_csv(out / "montecarlo.csv", reals)
     _write_plots(out, cfg, agg)
     write_run_json(out, cfg, "complete", timing, _listing(reals), versions=MC_VERSIONS)
@@ -202,12 +215,13 @@ def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int,
     return MonteCarloResults(cfg, out, summary, agg, timing)
 
 
-def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None) -> list[dict]:
+def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None,
+             force: bool = False) -> list[dict]:
     """Every realisation as one task on ``client``'s cluster -> metrics, in realisation order."""
     from distributed import as_completed
 
     tag = uuid.uuid4().hex[:8]
-    futures = [client.submit(_realisation, real["config"], str(real["dir"]), resume,
+    futures = [client.submit(_realisation, real["config"], str(real["dir"]), resume, None, force,
                              key=f"veriloc-realisation-{real['index']}-{tag}", pure=False)
                for real in reals]
     index = {f.key: real["index"] for f, real in zip(futures, reals)}
@@ -251,7 +265,7 @@ def _f(v) -> str:
 
 def write_csv(path: Path, reals: list[dict]) -> Path:
     """``montecarlo.csv``: one row per realisation and scenario (:data:`CSV_COLUMNS`)."""
-    with open(path, "w", newline="") as fh:
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(CSV_COLUMNS)
         for real in reals:

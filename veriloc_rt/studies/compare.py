@@ -138,7 +138,8 @@ def run_compare(cfg: Config, out_dir: str | Path, progress: Progress | None = No
     for model in MODELS:
         c = cfg.replace(propagation=dataclasses.replace(cfg.propagation, model=model))
         t = time.perf_counter()
-        res = run(c, out / model, progress=progress, workers=workers)
+        # its own sub-folders: replaced by every compare into this --out, as its other files
+        res = run(c, out / model, progress=progress, workers=workers, force=True)
         timing[f"run_{model}"] = time.perf_counter() - t
         keys = run_keys(c, len(res.geometry.bs_pos))
         t = time.perf_counter()

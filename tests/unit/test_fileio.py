@@ -1,0 +1,33 @@
+"""Atomic file output: the target is its old content or its complete new content."""
+
+import os
+
+import pytest
+
+from veriloc_rt.fileio import atomic_output, atomic_write_text
+
+
+def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path):
+    target = tmp_path / "metrics.json"
+    target.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_output(target) as tmp:
+            tmp.write_text("half of the new con")
+            raise RuntimeError("killed mid-write")
+    assert target.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["metrics.json"]
+
+
+def test_a_finished_write_replaces_the_file_with_the_usual_mode(tmp_path):
+    target = tmp_path / "plot.png"
+    target.write_text("old")
+    with atomic_output(target) as tmp:
+        assert tmp.suffix == ".png" and tmp.parent == tmp_path   # same folder: rename is atomic
+        tmp.write_bytes(b"new")
+    assert target.read_bytes() == b"new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plot.png"]
+    # the mode of a file created the ordinary way (0o666 less the umask), not mkstemp's 0o600
+    reference = tmp_path / "reference"
+    reference.write_text("")
+    atomic_write_text(tmp_path / "fresh.json", "{}")
+    assert os.stat(tmp_path / "fresh.json").st_mode == os.stat(reference).st_mode

@@ -1,0 +1,226 @@
+"""Chain results kept in the run folder, so that a resumed run recomputes none of them.
+
+The first scenario of a run computes, in the attack window, the chains of the later attack
+scenarios too (:meth:`~veriloc_rt.sim.runner.ScenarioRunner.compute_chains`); they, and the
+benign chains every scenario shares, are most of a run's work. :class:`ChainStore` appends each
+point's results to ``chains.bin`` as soon as they exist, and a resumed run reads them back, so
+that only the points no chain was computed for are computed again.
+
+File format: an 8-byte magic, the 32-byte SHA-256 of the run's resolved config (a store of
+another config is never read), then records, each a big-endian 8-byte length, the 32-byte
+SHA-256 of the payload and the payload. A torn or damaged record ends the file: it and
+everything after it are dropped (a kill mid-write tears the last record only).
+
+A payload holds one ``{cache key: ChainResult}`` dict without ``pickle`` (loading a pickle runs
+code): a JSON tree of the structure, where a dataclass is named by its class, which must be a
+dataclass of this package, followed by the arrays' raw bytes (dtype, shape and place in the
+tree). Floats go through their exact hex text and arrays as raw bytes, so the results read back
+are bit for bit the ones computed, and a resumed run writes the same rows as an uninterrupted
+one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib
+import json
+import logging
+import math
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from ..config import Config, config_to_dict
+
+log = logging.getLogger(__name__)
+
+__all__ = ["ChainStore", "encode", "decode", "config_digest"]
+
+MAGIC = b"VLCHAIN1"
+_HEAD = struct.Struct(">Q")
+_DIGEST = 32
+#: the package whose dataclasses a payload may name
+_PACKAGE = "veriloc_rt."
+
+
+def config_digest(cfg: Config) -> bytes:
+    """SHA-256 of the resolved config (canonical JSON)."""
+    return hashlib.sha256(json.dumps(config_to_dict(cfg), sort_keys=True).encode()).digest()
+
+
+def _enc(obj, blob: list):
+    if isinstance(obj, (np.ndarray, np.generic)):   # first: np.float64 is a float, np.str_ a str
+        a = np.asarray(obj)
+        if a.dtype.hasobject:
+            raise TypeError("object arrays are not stored")
+        fortran = bool(a.flags.f_contiguous and not a.flags.c_contiguous)  # as np.save keeps it
+        data = (a.T if fortran else a).tobytes()
+        offset = sum(len(b) for b in blob)
+        blob.append(data)
+        return {"a" if isinstance(obj, np.ndarray) else "s":
+                [a.dtype.str, list(a.shape), offset, len(data), fortran]}
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, int):
+        return {"i": str(obj)}
+    if isinstance(obj, float):
+        return {"f": obj.hex()}
+    if isinstance(obj, list):
+        return [_enc(x, blob) for x in obj]
+    if isinstance(obj, tuple):
+        return {"t": [_enc(x, blob) for x in obj]}
+    if isinstance(obj, dict):
+        return {"d": [[_enc(k, blob), _enc(v, blob)] for k, v in obj.items()]}
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        cls = type(obj)
+        return {"c": f"{cls.__module__}:{cls.__qualname__}",
+                "v": {f.name: _enc(getattr(obj, f.name), blob) for f in dataclasses.fields(obj)}}
+    raise TypeError(f"cannot store a {type(obj).__name__}")
+
+
+def _dataclass(name: str) -> type:
+    module, _, qual = name.partition(":")
+    if not module.startswith(_PACKAGE):
+        raise ValueError(f"class {name!r} is not of this package")
+    obj = importlib.import_module(module)
+    for part in qual.split("."):
+        obj = getattr(obj, part)
+    if not (isinstance(obj, type) and dataclasses.is_dataclass(obj)):
+        raise ValueError(f"{name!r} is not a dataclass")
+    return obj
+
+
+def _array(spec, blob: bytes) -> np.ndarray:
+    dtype_str, shape, offset, size, fortran = spec
+    dtype = np.dtype(dtype_str)
+    if dtype.hasobject:
+        raise ValueError("object arrays are not stored")
+    shape = tuple(int(n) for n in shape)
+    if offset < 0 or offset + size > len(blob) or size != dtype.itemsize * math.prod(shape):
+        raise ValueError("array outside the record")
+    a = np.frombuffer(blob, dtype, count=size // dtype.itemsize if dtype.itemsize else 0,
+                      offset=offset)
+    a = a.reshape(shape[::-1]).T if fortran else a.reshape(shape)
+    return a.copy(order="K")   # writable, its own memory, the stored layout
+
+
+def _dec(node, blob: bytes):
+    if node is None or isinstance(node, (bool, str)):
+        return node
+    if isinstance(node, list):
+        return [_dec(x, blob) for x in node]
+    if "c" in node:
+        cls = _dataclass(node["c"])
+        obj = cls.__new__(cls)   # the fields as stored, past __init__/__post_init__
+        names = {f.name for f in dataclasses.fields(cls)}
+        if set(node["v"]) != names:
+            raise ValueError(f"{node['c']}: fields {sorted(node['v'])}, expected {sorted(names)}")
+        for k, v in node["v"].items():
+            object.__setattr__(obj, k, _dec(v, blob))
+        return obj
+    (tag, val), = node.items()
+    if tag == "i":
+        return int(val)
+    if tag == "f":
+        return float.fromhex(val)
+    if tag == "a":
+        return _array(val, blob)
+    if tag == "s":
+        return _array(val, blob)[()]
+    if tag == "t":
+        return tuple(_dec(x, blob) for x in val)
+    if tag == "d":
+        return {_dec(k, blob): _dec(v, blob) for k, v in val}
+    raise ValueError(f"unknown node {tag!r}")
+
+
+def encode(obj) -> bytes:
+    """``obj`` (None, bool, int, float, str, NumPy arrays and scalars, lists, tuples, dicts and
+    dataclasses of this package, nested) as bytes, without pickle: the length of a JSON tree
+    (8 bytes, big-endian), the tree, then the arrays' raw bytes, which the tree locates."""
+    blob: list = []
+    tree = json.dumps(_enc(obj, blob), separators=(",", ":")).encode()
+    return b"".join([_HEAD.pack(len(tree)), tree, *blob])
+
+
+def decode(data: bytes):
+    """The object :func:`encode` wrote. Raises ValueError (or KeyError, TypeError) on bad data."""
+    (size,) = _HEAD.unpack_from(data, 0)
+    start = _HEAD.size + size
+    if start > len(data):
+        raise ValueError("tree outside the record")
+    return _dec(json.loads(data[_HEAD.size:start]), memoryview(data)[start:])
+
+
+class ChainStore:
+    """The chain results of one run folder (module docstring), opened for appending.
+
+    :param path: the store's file (``out/chains.bin``)
+    :param digest: :func:`config_digest` of the run's config
+    :param resume: read the results already stored (when the file is of this config) and append
+        after them; else start an empty store
+    """
+
+    def __init__(self, path: str | Path, digest: bytes, resume: bool):
+        self.path = Path(path)
+        self.digest = digest
+        self.loaded: list[dict] = []
+        end = self._read() if resume else 0
+        if end:
+            self._fh = open(self.path, "r+b")
+            self._fh.truncate(end)       # drop a torn or damaged tail
+            self._fh.seek(end)
+        else:
+            self._fh = open(self.path, "wb")
+            self._fh.write(MAGIC + digest)
+            self._fh.flush()
+
+    def _read(self) -> int:
+        """Fill :attr:`loaded`; the offset after the last good record (0: nothing usable)."""
+        try:
+            data = self.path.read_bytes()
+        except FileNotFoundError:
+            return 0
+        head = len(MAGIC) + _DIGEST
+        if data[:len(MAGIC)] != MAGIC or data[len(MAGIC):head] != self.digest:
+            if data:
+                log.warning("%s: not a chain store of this config; starting a new one", self.path)
+            return 0
+        pos = head
+        while pos < len(data):
+            rec = pos + _HEAD.size + _DIGEST
+            if rec > len(data):
+                break
+            (size,) = _HEAD.unpack_from(data, pos)
+            payload = data[rec:rec + size]
+            if len(payload) < size or hashlib.sha256(payload).digest() != data[pos + _HEAD.size:rec]:
+                break
+            try:
+                self.loaded.append(decode(payload))
+            except (ValueError, KeyError, TypeError, OSError, AttributeError, ImportError) as exc:
+                log.warning("%s: record at byte %d unreadable (%s)", self.path, pos, exc)
+                break
+            pos = rec + size
+        if pos < len(data):
+            log.warning("%s: %d bytes after the last complete record dropped (an interrupted "
+                        "write); their chains are computed again", self.path, len(data) - pos)
+        return pos
+
+    def append(self, results: dict) -> None:
+        """Store one point's ``{cache key: ChainResult}`` (flushed at once)."""
+        if not results:
+            return
+        payload = encode(results)
+        self._fh.write(_HEAD.pack(len(payload)) + hashlib.sha256(payload).digest() + payload)
+        self._fh.flush()
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
