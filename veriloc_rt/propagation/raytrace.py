@@ -203,12 +203,10 @@ class LinkTracer:
         # one source per call where Sionna draws interactions at random (module docstring);
         # otherwise unwanted pairs cost little (their candidates are dropped before they are
         # refined), so point-to-point links share calls too
-        if deterministic_rays(self.fid):
-            calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call,
-                               min_efficiency=MIN_EFFICIENCY_FILTERED)
-        else:
-            calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call,
-                               max_sources=1)
+        batched = deterministic_rays(self.fid)
+        calls = plan_calls(u_src[order], u_dst[order], per_pair, self.fid.work_per_call,
+                           max_sources=MAX_SOURCES_PER_CALL if batched else 1,
+                           min_efficiency=MIN_EFFICIENCY_FILTERED if batched else 0.25)
         results: list[RawPaths | None] = [None] * len(pair_first)
         done = 0
         total = len(pair_first)

@@ -277,6 +277,16 @@ REFLECTION, DIFFRACTION = 1, 2
 Visibility = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
+def wanted_pairs(links: np.ndarray | None, num_src: int, num_tgt: int) -> np.ndarray:
+    """[num_src, num_tgt] bool: the (source, target) pairs of ``links`` [n, 2] int (None:
+    every pair)."""
+    if links is None:
+        return np.ones((num_src, num_tgt), bool)
+    wanted = np.zeros((num_src, num_tgt), bool)
+    wanted[links[:, 0], links[:, 1]] = True
+    return wanted
+
+
 def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_depth: int,
                       plane_distance: float, max_target_reflections: int,
                       visible: Visibility | None = None,
@@ -302,10 +312,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
         ``visible``)
     :param links: [n, 2] int (source, target) indices to enumerate; default every pair
     """
-    wanted = np.ones((len(src), len(tgt)), bool)
-    if links is not None:
-        wanted[:] = False
-        wanted[links[:, 0], links[:, 1]] = True
+    wanted = wanted_pairs(links, len(src), len(tgt))
     ea, eb = geo.edge_a, geo.edge_b
     elen = np.linalg.norm(eb - ea, axis=1)
     ehat = (eb - ea) / np.where(elen > 0, elen, 1.0)[:, None]

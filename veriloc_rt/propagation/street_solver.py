@@ -18,7 +18,8 @@ from sionna.rt.constants import InteractionType
 from sionna.rt.path_solvers.paths_buffer import PathsBuffer
 from sionna.rt.utils.wedges import wedge_geometry
 
-from .street_paths import DIFFRACTION, REFLECTION, Candidates, SceneGeometry, street_candidates
+from .street_paths import (DIFFRACTION, REFLECTION, Candidates, SceneGeometry, street_candidates,
+                           wanted_pairs)
 
 log = logging.getLogger(__name__)
 
@@ -156,9 +157,7 @@ class WantedLinks:
         buf.schedule()
         dr.eval()
         buf.shrink()
-        num_src, num_tgt = dr.width(src_positions), dr.width(tgt_positions)
-        wanted = np.zeros((num_src, num_tgt), bool)
-        wanted[self.links[:, 0], self.links[:, 1]] = True
+        wanted = wanted_pairs(self.links, dr.width(src_positions), dr.width(tgt_positions))
         src = np.asarray(buf.source_indices, np.int64)
         tgt = np.asarray(buf.target_indices, np.int64)
         keep = np.flatnonzero(wanted[src, tgt]).astype(np.uint32)
