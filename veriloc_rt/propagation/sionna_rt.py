@@ -272,8 +272,25 @@ def _extract(paths, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPa
         return x[r_idx, t_idx]
 
     v = pick(valid)
-    return RawPaths(tau=np.where(v, pick(tau), -1.0), a=np.where(v[..., None, None], pick(a), 0.0),
-                    theta_r=np.where(v, pick(th_r), 0.0), phi_r=np.where(v, pick(ph_r), 0.0),
-                    theta_t=np.where(v, pick(th_t), 0.0), phi_t=np.where(v, pick(ph_t), 0.0),
-                    interactions=np.where(v[..., None], pick(inter), 0).astype(np.uint8),
-                    valid=v)
+    raw = RawPaths(tau=np.where(v, pick(tau), -1.0), a=np.where(v[..., None, None], pick(a), 0.0),
+                   theta_r=np.where(v, pick(th_r), 0.0), phi_r=np.where(v, pick(ph_r), 0.0),
+                   theta_t=np.where(v, pick(th_t), 0.0), phi_t=np.where(v, pick(ph_t), 0.0),
+                   interactions=np.where(v[..., None], pick(inter), 0).astype(np.uint8),
+                   valid=v)
+    return canonical_order(raw)
+
+
+def canonical_order(raw: RawPaths) -> RawPaths:
+    """The paths of each link in one order that depends on the paths only: valid first, then
+    by delay, angles, interaction sequence and coefficient.
+
+    Sionna RT numbers a link's paths with atomic counters (``dr.scatter_inc`` in
+    ``Paths``), so with several threads the order it returns varies from call to call.
+    """
+    ports = int(np.prod(raw.a.shape[2:]))
+    keys = [np.abs(raw.a).reshape(raw.a.shape[:2] + (ports,))[..., k] for k in range(ports)][::-1]
+    keys += [raw.interactions[..., k] for k in range(raw.interactions.shape[2])][::-1]
+    keys += [raw.phi_t, raw.theta_t, raw.phi_r, raw.theta_r, raw.tau, ~raw.valid]
+    order = np.lexsort(keys, axis=-1)
+    return RawPaths(**{f: np.take_along_axis(getattr(raw, f), order.reshape(
+        order.shape + (1,) * (getattr(raw, f).ndim - 2)), axis=1) for f in RawPaths.FIELDS})
