@@ -67,7 +67,7 @@ class SceneConfig:
     block_size_m: float = param(30.0, "side of the square building blocks", lo=2.0, hi=500.0)
     extent_m: float = param(450.0, "half-side of the square area the street grid covers",
                             lo=20.0, hi=5000.0)
-    margin_m: float = param(150.0, "emit only buildings within this 2-D distance of a used BS "
+    margin_m: float = param(300.0, "emit only buildings within this 2-D distance of a used BS "
                             "or of the trajectory (crop: model no more than the scene needs; "
                             "cost and accuracy of the margins: docs/performance.md)",
                             lo=0.0, hi=5000.0)

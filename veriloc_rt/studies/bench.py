@@ -77,7 +77,7 @@ KNOBS = (
     Knob("raytrace", "diffraction", "propagation.raytrace.diffraction", (False, True)),
     Knob("raytrace", "edge_candidates", "propagation.raytrace.edge_candidates",
          ("sampled", "exhaustive", "both")),
-    Knob("raytrace", "margin_m", "scene.margin_m", (20.0, 60.0, 150.0, 300.0)),
+    Knob("raytrace", "margin_m", "scene.margin_m", (60.0, 150.0, 200.0, 300.0, 450.0)),
     Knob("waveform", "sample_rate_hz", "nr.sample_rate_hz", (None, 30.72e6, 61.44e6, 122.88e6)),
     Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
     Knob("waveform", "domain", "channel.domain", ("frequency", "time")),

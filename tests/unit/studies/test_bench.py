@@ -184,6 +184,6 @@ def test_sweep_settings_full_raytrace_reference_is_the_converged_one():
     for path, v in RAYTRACE_REFERENCE.items():
         assert ref.patch[path] == v
     # the crop margin and diffraction stay at their highest levels
-    assert ref.patch["scene.margin_m"] == 300.0 and ref.patch["propagation.raytrace.diffraction"] is True
+    assert ref.patch["scene.margin_m"] == 450.0 and ref.patch["propagation.raytrace.diffraction"] is True
     # a UE's three links fit one PathSolver call: 3 targets x depth x rays <= work_per_call
     assert 3 * 4 * 10_000_000 <= ref.patch["propagation.raytrace.work_per_call"]
