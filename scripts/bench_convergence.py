@@ -148,7 +148,7 @@ def child(job: Path, out: Path) -> None:
     seed = cfg.seed if s.get("seed") is None else s["seed"]
     tracer = LinkTracer(spec["scene_xml"], cfg.propagation.carrier_frequency_hz, fid, seed,
                         cache_dir=None)
-    st = tracer._tracer_obj()            # scene loading is not tracing
+    st = tracer.sionna_tracer()          # scene loading is not tracing
     if not s["deterministic"]:
         from veriloc_rt.backend import import_sionna
         st.solver = import_sionna().PathSolver(deterministic=False)
@@ -197,7 +197,7 @@ def trace_setting(setting: dict, cfg_data: dict, scene_xml: Path, tx, rx, work: 
         if kept:
             kept.parent.mkdir(parents=True, exist_ok=True)
         t = time.perf_counter()
-        subprocess.run([sys.executable, __file__, "--_child", str(job), str(out)], check=True)
+        subprocess.run([sys.executable, __file__, "--child", str(job), str(out)], check=True)
         print(f"# {label(setting)}: traced in {time.perf_counter() - t:.0f} s", flush=True)
         kept = out
     with np.load(kept) as d:
@@ -306,7 +306,7 @@ def _copies(a: tuple, b: tuple, lm):
     (s), power ratio (dB), the path's power relative to its link's strongest path in ``a`` (dB),
     its number of interactions, whether it has a diffraction."""
     depth = max(a[2].shape[-1], b[2].shape[-1])
-    ia, ib = lm._pad_depth(a[2], depth), lm._pad_depth(b[2], depth)
+    ia, ib = lm.pad_depth(a[2], depth), lm.pad_depth(b[2], depth)
     p_max = np.where(a[3], a[1], 0).max(axis=-1)
     out = []
     for link in range(a[0].shape[0]):
@@ -399,10 +399,10 @@ def main() -> int:
     ap.add_argument("--keep", help="folder keeping each setting's traced paths (reused)")
     ap.add_argument("--out", help="write OUT.json and OUT.md")
     ap.add_argument("--quick", action="store_true", help="4 points, a short ladder")
-    ap.add_argument("--_child", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
-    if args._child:
-        child(Path(args._child[0]), Path(args._child[1]))
+    if args.child:
+        child(Path(args.child[0]), Path(args.child[1]))
         return 0
 
     from veriloc_rt.config import config_to_dict, load_config

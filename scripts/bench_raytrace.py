@@ -52,7 +52,7 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path,
                             cfg.propagation.raytrace, cfg.seed, cache_dir=None)
         tx = geo.bs_pos[geo.serving].reshape(-1, 3)
         rx = np.repeat(geo.ue.pos, 3, axis=0)
-        tracer._tracer_obj()  # scene loading is not tracing
+        tracer.sionna_tracer()  # scene loading is not tracing
         t0 = time.perf_counter()
         raw = trace_links(tracer, tx, rx, direction == "reciprocal", rays)
         dt = time.perf_counter() - t0
@@ -79,10 +79,10 @@ def main() -> int:
     ap.add_argument("--keep", help="folder to keep each setting's per-link results (.npz)")
     ap.add_argument("--candidates", type=int, default=2000,
                     help="raytrace.max_candidates_per_source (default 2000)")
-    ap.add_argument("--_one", nargs=3, help=argparse.SUPPRESS)
+    ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
-    if args._one:
-        one(args._one[0], int(args._one[1]), args.points, args.depth, Path(args._one[2]),
+    if args.one:
+        one(args.one[0], int(args.one[1]), args.points, args.depth, Path(args.one[2]),
             args.candidates)
         return 0
     sweep = SWEEP if not args.only else [(o.split(":")[0], int(float(o.split(":")[1])))
@@ -93,7 +93,7 @@ def main() -> int:
             f = Path(args.keep or tmp) / f"{direction}_{rays}.npz"
             f.parent.mkdir(parents=True, exist_ok=True)
             subprocess.run([sys.executable, __file__, "--points", str(args.points), "--depth",
-                            str(args.depth), "--candidates", str(args.candidates), "--_one",
+                            str(args.depth), "--candidates", str(args.candidates), "--one",
                             direction, str(rays), str(f)], check=True)
             with np.load(f) as d:
                 results[(direction, rays)] = {k: d[k] for k in d.files}

@@ -67,7 +67,7 @@ def main() -> int:
                                        "concrete right-angle wedge vs Luebbers")):
                 h = T.Harness(scenes[block], coef)
                 for php_d, ph_d in T.WEDGE_CASES:
-                    fwd, rev, want = T._wedge_case(h, php_d, ph_d, eta=eta)
+                    fwd, rev, want = T.wedge_case(h, php_d, ph_d, eta=eta)
                     for name, traced in (("from far end", fwd), ("from near end", rev)):
                         db, deg = _dev(traced, want)
                         print(f"| {label} | {php_d} / {ph_d} | {coef} | {name} | "

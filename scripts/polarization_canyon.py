@@ -36,6 +36,7 @@ SETTINGS = {
 
 
 def measure(setting: str, points: int, rays: int | None, out: str) -> None:
+    from veriloc_rt.backend import import_sionna
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.cir import INTERACTION_DIFFRACTION, INTERACTION_DIFFUSE
     from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
@@ -52,9 +53,9 @@ def measure(setting: str, points: int, rays: int | None, out: str) -> None:
         geo = build_geometry(cfg, tmp)
         tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed,
                             cache_dir=None)
-        sionna = tracer._tracer_obj()   # scene loading is not tracing
+        sionna = tracer.sionna_tracer()   # scene loading is not tracing
         if single:   # the pre-polarimetric tracer: one 'V' port at each end (cost reference)
-            rt = sionna._rt
+            rt = import_sionna()
             sionna.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso",
                                                    polarization="V")
             sionna.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso",

@@ -182,7 +182,16 @@ def _box_ply(path: Path, vertices=None, faces=None) -> None:
     write_ply(path, v, f)
 
 
-@pytest.mark.parametrize("case", ["empty", "garbage", "face_index_out_of_range", "zero_faces"])
+#: an ASCII PLY of the box's four vertices and two faces (header: 4 + 2 elements)
+ASCII_HEADER = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+                "end_header\n")
+ASCII_VERTICES = ["0 0 0", "1 0 0", "0 1 0", "0 0 1"]
+ASCII_FACES = ["3 0 1 2", "3 0 1 3"]
+
+
+@pytest.mark.parametrize("case", ["empty", "garbage", "face_index_out_of_range", "zero_faces",
+                                  "ascii_cut_short", "ascii_vertex_row_missing"])
 def test_damaged_ply(tmp_path, case):
     scene = external_scene(tmp_path)
     ply = scene / "meshes" / "buildings.ply"
@@ -192,10 +201,18 @@ def test_damaged_ply(tmp_path, case):
         ply.write_bytes(os.urandom(2000))
     elif case == "face_index_out_of_range":
         _box_ply(ply, faces=np.array([[0, 1, 2], [0, 1, 99]]))
-    else:
+    elif case == "zero_faces":
         _box_ply(ply, faces=np.zeros((0, 3), int))
+    elif case == "ascii_cut_short":       # trimesh alone reads the one face left
+        ply.write_text(ASCII_HEADER + "\n".join(ASCII_VERTICES + ASCII_FACES[:1]) + "\n")
+    else:                                 # trimesh alone reads the first face row as a vertex
+        ply.write_text(ASCII_HEADER + "\n".join(ASCII_VERTICES[:3] + ASCII_FACES) + "\n")
     code, _, err = check(tmp_path, external_config(tmp_path, scene))
-    assert_one_line(code, err, str(ply))
+    line = assert_one_line(code, err, str(ply))
+    if case.startswith("ascii"):
+        assert line.endswith(f"{4 + 2 - 1} data rows, but the PLY header declares {4 + 2} "
+                             "elements (vertices and faces)")
+
 
 
 def test_unknown_material(tmp_path):

@@ -17,23 +17,9 @@ SOURCES = sorted([*(ROOT / "veriloc_rt").rglob("*.py"), *(ROOT / "tests").rglob(
                   *(ROOT / "scripts").glob("*.py")])
 
 
-#: private names still taken across modules, each (file, name), all around the ray tracer and the
-#: fidelity bench, whose internals are being reworked on another branch; they go public there.
-#: The test fails when one disappears too (so the list only shrinks).
-PENDING = {
-    ("scripts/bench_convergence.py", "_child"), ("scripts/bench_convergence.py", "_tracer_obj"),
-    ("scripts/bench_convergence.py", "_pad_depth"), ("scripts/bench_raytrace.py", "_one"),
-    ("scripts/bench_raytrace.py", "_tracer_obj"), ("scripts/diffraction_table.py", "_wedge_case"),
-    ("scripts/polarization_canyon.py", "_tracer_obj"), ("scripts/polarization_canyon.py", "_rt"),
-    ("tests/unit/propagation/test_diffraction.py", "_rt"),
-    ("tests/unit/propagation/test_polarization.py", "_Direct"),
-    ("tests/unit/propagation/test_polarization.py", "_match"),
-    ("tests/unit/propagation/test_polarization.py", "_rt"),
-    ("tests/unit/propagation/test_polarization.py", "_call_key"),
-    ("tests/unit/studies/test_bench.py", "_patched"),
-    ("tests/unit/studies/test_bench.py", "_chain_deviation"),
-    ("tests/unit/studies/test_bench.py", "_channel_deviation"),
-}
+#: private names still taken across modules, each (file, name): none is left; an entry would
+#: make the test fail when it disappears too (so the list only shrinks).
+PENDING: set[tuple[str, str]] = set()
 
 
 def _private(name: str) -> bool:

@@ -39,7 +39,12 @@ from .cir import INTERACTION_NONE
 SAME_PATH_TOL_S = 2e-12
 
 
-def _pad_depth(inter: np.ndarray, depth: int) -> np.ndarray:
+def pad_depth(inter: np.ndarray, depth: int) -> np.ndarray:
+    """Interaction sequences zero-padded (no interaction) along the last axis to ``depth``, so
+    that sequences traced with different ``max_depth`` compare element by element.
+
+    :param inter: [..., max_depth] int interaction types; depth >= its max_depth
+    """
     return np.pad(inter, [(0, 0)] * (inter.ndim - 1) + [(0, depth - inter.shape[-1])])
 
 
@@ -109,7 +114,7 @@ def has_path(tau: np.ndarray, interactions: np.ndarray, valid: np.ndarray,
         ``INTERACTION_NONE`` padding ignored) and ``|tau - tau_q| <= tol_s``
     """
     depth = max(interactions.shape[-1], inter_q.shape[-1])
-    inter, q = _pad_depth(interactions, depth), _pad_depth(inter_q, depth)
+    inter, q = pad_depth(interactions, depth), pad_depth(inter_q, depth)
     same = np.all(inter == q[:, None, :], axis=-1)
     close = np.abs(tau - np.asarray(tau_q, float)[:, None]) <= tol_s
     return np.any(valid & same & close, axis=-1)
@@ -174,7 +179,7 @@ def union_paths(traces: list[tuple], tol_s: float = SAME_PATH_TOL_S) -> tuple:
     for s, t in enumerate(traces):
         if t[0].shape[0] != n:
             raise ValueError(f"trace {s} has {t[0].shape[0]} links, not {n}")
-    padded = [(t[0], t[1], _pad_depth(t[2], depth), t[3]) for t in traces]
+    padded = [(t[0], t[1], pad_depth(t[2], depth), t[3]) for t in traces]
     per_link = []
     for link in range(n):
         k_tau, k_pow = np.zeros(0), np.zeros(0)

@@ -54,7 +54,7 @@ from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 log = logging.getLogger(__name__)
 
 __all__ = ["Knob", "Setting", "BenchResult", "sweep_settings", "run_bench", "pareto_front",
-           "write_bench"]
+           "write_bench", "patched_config", "chain_deviation", "channel_deviation"]
 
 Progress = Callable[[str, int, int], None]
 
@@ -88,7 +88,7 @@ KNOBS = (
 #: the accuracy axis of each group's Pareto front: what the group's knobs act on, as the share
 #: of units that come out different from the reference (resolution 1 / units). Ray tracing:
 #: serving links whose received power is more than POWER_TOL_DB off the reference's, or lost or
-#: gained (:func:`_channel_deviation`). Power, not the first path's delay: a traced channel that
+#: gained (:func:`channel_deviation`). Power, not the first path's delay: a traced channel that
 #: misses its strong paths (found only with many rays: roof-edge diffraction followed by
 #: reflections between the street's walls) still has the same first path, so the delay axis
 #: showed settings as converged whose per-link power was several dB short and whose strongest
@@ -193,7 +193,9 @@ def _get(d: dict, path: str):
     return d
 
 
-def _patched(cfg: Config, patch: dict) -> Config:
+def patched_config(cfg: Config, patch: dict) -> Config:
+    """``cfg`` with the fields of ``patch`` (dotted path -> value, as :attr:`Setting.patch`)
+    replaced, validated again."""
     data = copy.deepcopy(config_to_dict(cfg))
     for path, value in patch.items():
         node = data
@@ -255,7 +257,11 @@ def _pct(x: np.ndarray) -> tuple[float | None, float | None]:
     return q["p50"], q["p95"]
 
 
-def _chain_deviation(run: BenignRun, ref: BenignRun) -> dict:
+def chain_deviation(run: BenignRun, ref: BenignRun) -> dict:
+    """Deviation of a setting's chain outputs from the reference's on the same points: RSTD
+    (``rstd_dev_m_p50``/``_p95``, m), AoA (``aoa_dev_deg_*``), position (``position_dev_m_*``
+    over the points both fix), ``fix_mismatch_pct``, ``position_off_pct`` (fix lost, gained or
+    more than POSITION_TOL_M off) and ``decision_agreement_pct``."""
     # ToA differences are only meaningful relative to a BS of the same point: compare RSTDs
     # (each BS against the reference BS 0), which is what positioning uses
     rstd = (run.toa - run.toa[:, :1]) - (ref.toa - ref.toa[:, :1])
@@ -276,7 +282,7 @@ def _chain_deviation(run: BenignRun, ref: BenignRun) -> dict:
     return out
 
 
-def _channel_deviation(cir, ref_cir, points: np.ndarray) -> dict:
+def channel_deviation(cir, ref_cir, points: np.ndarray) -> dict:
     """Deviation of the serving links' channels from the reference's, per link
     (:mod:`~veriloc_rt.propagation.link_metrics`):
 
@@ -392,7 +398,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     # ray-tracing group: trace, then the config's chain on the traced CIRs
     rt = [s for s in settings if s.group == "raytrace"]
     for s in sorted(rt, key=lambda s: s.role != "reference"):   # reference first
-        c = _patched(cfg, s.patch)
+        c = patched_config(cfg, s.patch)
         geo = _geometry(c, out / "scenes") if c.scene.margin_m != cfg.scene.margin_m else geo0
         if not np.allclose(geo.ue.pos, geo0.ue.pos):
             raise RuntimeError(f"{s.label}: the trajectory depends on the crop margin")
@@ -409,12 +415,12 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     if rt:
         ref = next(s for s in rt if s.role == "reference")
         for s in rt:
-            s.metrics = _channel_deviation(cirs[id(s)], cirs[id(ref)], idx)
-            s.metrics.update(_chain_deviation(runs[id(s)], runs[id(ref)]))
+            s.metrics = channel_deviation(cirs[id(s)], cirs[id(ref)], idx)
+            s.metrics.update(chain_deviation(runs[id(s)], runs[id(ref)]))
     # waveform group, on the config's CIRs
     wf = [s for s in settings if s.group == "waveform"]
     for s in sorted(wf, key=lambda s: s.role != "reference"):
-        c = _patched(cfg, s.patch)
+        c = patched_config(cfg, s.patch)
         r = benign_chain(c, geo0, bs_ue0, keys, idx, shared_noise=True,
                          noise="noise-floor" if s.role == "noise floor" else "noise")
         s.time_s, s.time_unit = r.seconds_per_point, "point"
@@ -425,7 +431,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     for s in wf:
         # the noise floor is the config's setting against itself with other noise draws
         base = own if s.role == "noise floor" else ref
-        s.metrics = _chain_deviation(runs[id(s)], runs[id(base)])
+        s.metrics = chain_deviation(runs[id(s)], runs[id(base)])
     for g in {s.group for s in settings}:
         grp = [s for s in settings if s.group == g and s.role != "noise floor"]
         front = pareto_front([s.time_s for s in grp], [s.metrics.get(PARETO_METRIC[g]) for s in grp],

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from veriloc_rt.backend import import_sionna
 from veriloc_rt.constants import SPEED_OF_LIGHT
 
 from .diffraction_reference import (kp_soft_hard, permittivity, slab_reflection,
@@ -84,7 +85,7 @@ class Harness:
 
         # the tracer's arrays are already one isotropic (V, H) element at each end
         self.tracer = SionnaTracer(xml, FC, seed=1, diffraction_coefficient=coefficient)
-        self.rt = self.tracer._rt
+        self.rt = import_sionna()
 
     def paths(self, src, dst, rays, edge_diffraction=False):
         """[(length m, interactions, Jones [rx pol, tx pol])] of single-interaction paths."""
@@ -202,9 +203,11 @@ def test_sionna_coefficient_is_off_the_exact_half_plane(scenes):
     assert nonrecip > 1.0
 
 
-def _wedge_case(h, phi_p_deg, phi_deg, r0=(-1.0, 1.0), rn=(-1.0, 1.0), eta=None):
+def wedge_case(h, phi_p_deg, phi_deg, r0=(-1.0, 1.0), rn=(-1.0, 1.0), eta=None):
     """Trace a roof-edge wedge (n = 1.5) from a source 500 m away to a receiver 20 m away,
-    both ways, against the independent UTD with the faces' reflection coefficients."""
+    both ways, against the independent UTD with the faces' reflection coefficients
+    (scripts/diffraction_table.py tabulates the same cases). -> (forward, reverse, wanted)
+    Jones matrices"""
     edge = np.array([0.0, 0.0, 15.0])
     php, ph = np.deg2rad(phi_p_deg), np.deg2rad(phi_deg)
     s_p, s = 500.0, NEAR_M
@@ -228,7 +231,7 @@ WEDGE_CASES = [(10, 100), (10, 200), (10, 260), (60, 150), (120, 200), (170, 210
 @pytest.mark.parametrize("phi_p_deg, phi_deg", WEDGE_CASES)
 def test_pec_wedge_matches_kouyoumjian_pathak(scenes, phi_p_deg, phi_deg):
     h = Harness(scenes["pec_block"], "utd")
-    fwd, rev, want = _wedge_case(h, phi_p_deg, phi_deg)
+    fwd, rev, want = wedge_case(h, phi_p_deg, phi_deg)
     assert_matches(fwd, want)
     assert_matches(rev, want)
 
@@ -238,6 +241,6 @@ def test_concrete_wedge_matches_luebbers_and_is_reciprocal(scenes, phi_p_deg, ph
     """Luebbers' heuristic with the source at the smaller face angle (phi' < phi in every
     case: there the package's reciprocal form is Luebbers' own, see utd_material)."""
     h = Harness(scenes["concrete_block"], "utd")
-    fwd, rev, want = _wedge_case(h, phi_p_deg, phi_deg, eta=permittivity("concrete", FC))
+    fwd, rev, want = wedge_case(h, phi_p_deg, phi_deg, eta=permittivity("concrete", FC))
     assert_matches(fwd, want)
     assert_matches(rev, want)

@@ -24,6 +24,7 @@ import itertools
 import numpy as np
 import pytest
 
+from veriloc_rt.backend import import_sionna
 from veriloc_rt.config import MaterialsConfig, PolarizationConfig, RayTracingConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.propagation.cir import (INTERACTION_DIFFRACTION, INTERACTION_DIFFUSE,
@@ -31,7 +32,8 @@ from veriloc_rt.propagation.cir import (INTERACTION_DIFFRACTION, INTERACTION_DIF
 from veriloc_rt.propagation.polarization import SLANT_ANGLES, project, xpd_coefficient
 
 from .rt_scenes import boxes, ground, write_test_scene
-from .test_raytrace_analytic import FC, LAM, fresnel, permittivity
+from .test_raytrace_analytic import (FC, LAM, DirectTracer, fresnel, match_paths, paths_of,
+                                     permittivity)
 
 POLS = tuple(SLANT_ANGLES)
 
@@ -180,7 +182,7 @@ def _direct_single_port(tracer, tx_pol, rx_pol, tx, rx, fid, rays):
     """Trace with Sionna's own single-port arrays (then restore the polarimetric ones)."""
     from veriloc_rt.propagation.sionna_rt import polarimetric_arrays
 
-    rt = tracer._rt
+    rt = import_sionna()
     tracer.scene.tx_array, tracer.scene.rx_array = (
         rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso", polarization=pol)
         for pol in (tx_pol, rx_pol))
@@ -219,13 +221,11 @@ def test_reciprocity_of_mixed_polarizations(street):
     reversed path's polarimetric matrix is the transpose (trace_links swaps the port axes)."""
     from veriloc_rt.propagation.raytrace import trace_links
 
-    from .test_raytrace_analytic import _Direct, _match, paths_of
-
-    f = trace_links(_Direct(street, SPEC2), BS[None], UE[None], reciprocal=False, rays=200_000)
-    r = trace_links(_Direct(street, SPEC2), BS[None], UE[None], reciprocal=True, rays=200_000)
+    f = trace_links(DirectTracer(street, SPEC2), BS[None], UE[None], reciprocal=False, rays=200_000)
+    r = trace_links(DirectTracer(street, SPEC2), BS[None], UE[None], reciprocal=True, rays=200_000)
     for rx_pol, tx_pol in (("H", "V"), ("V", "H"), ("+45", "V"), ("-45", "+45")):
         pf, pr = paths_of(f, rx_pol, tx_pol), paths_of(r, rx_pol, tx_pol)
-        common = _match(pf, pr)
+        common = match_paths(pf, pr)
         assert len(common) == len(pf["tau"]) >= 5
         scale = np.abs(f.a[0][f.valid[0]]).max()
         for i, j in common:
@@ -283,7 +283,7 @@ def test_cache_key_ignores_polarization_but_not_materials(tmp_path):
     src, dst, pairs = np.zeros((1, 3)), np.ones((1, 3)), np.zeros((1, 2), np.int64)
 
     def key(fid):
-        return LinkTracer(xml, FC, fid, 1, tmp_path)._call_key(src, dst, pairs, 1000)
+        return LinkTracer(xml, FC, fid, 1, tmp_path).call_key(src, dst, pairs, 1000)
 
     base = RayTracingConfig()
     assert key(base) == key(dataclasses.replace(

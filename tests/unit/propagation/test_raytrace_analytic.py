@@ -156,8 +156,9 @@ def test_batched_receivers_match_one_receiver_per_call(street):
         _same_paths(batched, i, single, 0, f"receiver {i}")
 
 
-class _Direct:
-    """Minimal tracer for trace_links: one PathSolver call per link."""
+class DirectTracer:
+    """Minimal tracer for trace_links: one PathSolver call per link (also used by
+    test_polarization)."""
 
     def __init__(self, tr, fid):
         self.tr, self.fid = tr, fid
@@ -169,7 +170,9 @@ class _Direct:
                                 for s, d in zip(src, dst)])
 
 
-def _match(f, r):
+def match_paths(f, r) -> list[tuple[int, int]]:
+    """Index pairs (i, j) of the paths of ``f`` and ``r`` (:func:`paths_of` dicts) whose delays
+    agree within DELAY_TOL_S."""
     return [(i, j) for i in range(len(f["tau"])) for j in range(len(r["tau"]))
             if abs(f["tau"][i] - r["tau"][j]) < DELAY_TOL_S]
 
@@ -190,10 +193,10 @@ def test_reciprocal_tracing_equals_forward_specular(tracer_factory):
     tr = tracer_factory("recip_spec", meshes)
     fid = RayTracingConfig(max_depth=2, diffraction=False, refraction=False)
     bs, ue = np.array([[1.0, 40.0, 8.0]]), np.array([[0.0, -8.0, 1.5]])  # wall bounces in reach
-    f = paths_of(trace_links(_Direct(tr, fid), bs, ue, reciprocal=False, rays=200_000))
-    r = paths_of(trace_links(_Direct(tr, fid), bs, ue, reciprocal=True, rays=200_000))
+    f = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=False, rays=200_000))
+    r = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=True, rays=200_000))
     assert len(f["tau"]) == len(r["tau"]) >= 3
-    for i, j in _match(f, r):
+    for i, j in match_paths(f, r):
         assert abs(f["a"][i] - r["a"][j]) <= 1e-3 * abs(f["a"][i])
         assert f["phi_r"][i] == pytest.approx(r["phi_r"][j], abs=ANGLE_TOL_RAD)
         assert f["theta_t"][i] == pytest.approx(r["theta_t"][j], abs=ANGLE_TOL_RAD)
@@ -209,9 +212,9 @@ def test_reciprocal_tracing_with_diffraction(tracer_factory):
     tr = tracer_factory("recip_diff", meshes)
     fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False)
     bs, ue = np.array([[140.0, 35.0, 25.0]]), np.array([[0.0, -8.0, 1.5]])
-    f = paths_of(trace_links(_Direct(tr, fid), bs, ue, reciprocal=False, rays=400_000))
-    r = paths_of(trace_links(_Direct(tr, fid), bs, ue, reciprocal=True, rays=20_000))
-    common = _match(f, r)
+    f = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=False, rays=400_000))
+    r = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=True, rays=20_000))
+    common = match_paths(f, r)
     assert len(common) == len(f["tau"]) >= 2, "every forward path is found from the UE side"
     for i, j in common:
         ratio_db = 20 * np.log10(abs(f["a"][i]) / abs(r["a"][j]))

@@ -58,11 +58,11 @@ def test_sweep_settings_uma_has_no_raytrace_group():
 
 @pytest.mark.parametrize("quick", [False, True])
 def test_every_swept_setting_is_a_valid_config(quick):
-    from veriloc_rt.studies.bench import _patched
+    from veriloc_rt.studies.bench import patched_config
 
     cfg = config_from_dict({})
     for s in sweep_settings(cfg, quick):
-        c = _patched(cfg, s.patch)
+        c = patched_config(cfg, s.patch)
         for path, v in s.patch.items():
             node = c
             for k in path.split("."):
@@ -91,7 +91,7 @@ def test_position_off_share_by_hand():
     # setting has a fix: off; (d) only the reference: off; (e) neither: same -> 3 of 5 = 60 %
     import numpy as np
 
-    from veriloc_rt.studies.bench import POSITION_TOL_M, _chain_deviation
+    from veriloc_rt.studies.bench import POSITION_TOL_M, chain_deviation
     from veriloc_rt.studies.diagnostics import BenignRun
 
     nan = np.nan
@@ -106,10 +106,10 @@ def test_position_off_share_by_hand():
                          truth=np.zeros((n, 2)), decisions=np.zeros((n, 4), bool),
                          seconds_per_point=0.1)
 
-    m = _chain_deviation(mk(run_pos), mk(ref_pos))
+    m = chain_deviation(mk(run_pos), mk(ref_pos))
     assert m["position_off_pct"] == pytest.approx(60.0)
     assert m["fix_mismatch_pct"] == pytest.approx(40.0)
-    assert _chain_deviation(mk(ref_pos), mk(ref_pos))["position_off_pct"] == 0.0
+    assert chain_deviation(mk(ref_pos), mk(ref_pos))["position_off_pct"] == 0.0
 
 
 def _cir(links: list[list[tuple]], depth: int):
@@ -149,7 +149,7 @@ def test_channel_deviation_power_axes_by_hand():
     #    p90 of [6.0206, 0] = 6.0206; first path off (lost) 1 of 3
     import numpy as np
 
-    from veriloc_rt.studies.bench import POWER_TOL_DB, _channel_deviation
+    from veriloc_rt.studies.bench import POWER_TOL_DB, channel_deviation
 
     us = 1e-6
     D, R = 8, 1
@@ -158,7 +158,7 @@ def test_channel_deviation_power_axes_by_hand():
     run = _cir([[(1.00 * us, 1e-12, (D,)), (1.02 * us, 1e-12, (D, R, R))],
                 [(2.00 * us, 2e-12, (D,)), (2.05 * us, 1e-12, (D, R))], []], depth=3)
     assert POWER_TOL_DB == 3.0
-    m = _channel_deviation(run, ref, np.array([0]))
+    m = channel_deviation(run, ref, np.array([0]))
     tol = 1e-4   # dB, the worked values are rounded to 4 decimals
     assert m["power_dev_db_p50"] == pytest.approx(-4.7712, abs=tol)
     assert m["power_absdev_db_p90"] == np.inf
@@ -168,7 +168,7 @@ def test_channel_deviation_power_axes_by_hand():
     assert m["first_rel_power_absdev_db_p90"] == pytest.approx(6.0206, abs=tol)
     assert m["first_path_off_pct"] == pytest.approx(100 / 3)
     # against itself: nothing off, everything found
-    s = _channel_deviation(ref, ref, np.array([0]))
+    s = channel_deviation(ref, ref, np.array([0]))
     assert (s["power_dev_db_p50"], s["power_absdev_db_p90"], s["power_off_pct"]) == (0.0, 0.0, 0.0)
     assert s["strongest_found_pct"] == 100.0 and s["first_rel_power_absdev_db_p90"] == 0.0
 

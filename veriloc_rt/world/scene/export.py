@@ -1,7 +1,9 @@
 """Mitsuba XML + PLY export of a canyon, and reading meshes back from any Sionna XML scene.
 
-The PLY writer is our own (binary little-endian, fixed header) so the same canyon always gives
-byte-identical files; this is what the propagation cache hashes.
+PLY files are written and read by trimesh. Its binary writer is deterministic (fixed header,
+float32 vertices, uchar-counted int32 triangles), so the same canyon always gives byte-identical
+files: the propagation cache hashes them (:func:`scene_digest`). Every file is written atomically
+(:mod:`veriloc_rt.fileio`).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
+from ...fileio import atomic_write_bytes, atomic_write_text
 from ...inputs import check_path, read_bytes
 from .canyon import UrbanCanyon
 
@@ -26,33 +29,26 @@ MAX_MESH_BYTES = 1 << 30
 
 
 def write_ply(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
-    """Binary little-endian PLY: float32 vertices, uint8-counted int32 triangle lists.
+    """Write a triangle mesh as a binary little-endian PLY (trimesh's writer), atomically.
 
-    :param vertices: [num_vertices, 3] float, m; faces: [num_faces, 3] int
+    :param vertices: [num_vertices, 3] float, m (stored as float32)
+    :param faces: [num_faces, 3] int, vertex indices (stored as int32)
     """
-    v = np.ascontiguousarray(vertices, dtype="<f4")
-    f = np.empty(len(faces), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
-    f["n"] = 3
-    f["idx"] = faces
-    header = (
-        "ply\nformat binary_little_endian 1.0\n"
-        f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
-        f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n"
-    )
-    with open(path, "wb") as fh:
-        fh.write(header.encode("ascii"))
-        fh.write(v.tobytes())
-        fh.write(f.tobytes())
+    import trimesh   # on use: its import takes about a second; most commands need no mesh
+
+    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
+    atomic_write_bytes(path, mesh.export(file_type="ply", encoding="binary"))
 
 
 def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Read a triangle mesh (PLY, or any format trimesh reads) and check it.
 
     :returns: vertices [num_vertices, 3] float64, m; faces [num_faces, 3] int64
-    :raises InputError: naming the file when it is not a regular file, cannot be parsed, has no
-        triangle, a non-finite vertex or a face index outside the vertex list
+    :raises InputError: naming the file when it is not a regular file, cannot be parsed (an
+        ASCII PLY: has not as many rows as its header declares), has no triangle, a non-finite
+        vertex or a face index outside the vertex list
     """
-    import trimesh
+    import trimesh   # on use (see write_ply)
 
     name = str(path)
     data = read_bytes(path, name, "mesh file", MAX_MESH_BYTES)
@@ -64,6 +60,7 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
     except Exception as exc:  # noqa: BLE001 - a third-party parser on user bytes: any failure
         reason = " ".join(str(exc).split())[:120] or type(exc).__name__
         raise InputError(name, f"not a readable triangle mesh ({reason})") from None
+    _check_ascii_ply_rows(data, name)
     if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
         raise InputError(name, f"no triangles (faces of shape {faces.shape})")
     if not np.all(np.isfinite(vertices)):
@@ -74,6 +71,25 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(name, f"face {k} indexes vertex {faces[k].tolist()}, but the mesh has "
                          f"{len(vertices)} vertices")
     return vertices, faces
+
+
+def _check_ascii_ply_rows(data: bytes, name: str) -> None:
+    """An ASCII PLY must have as many data rows as its header declares elements.
+
+    trimesh reads ASCII rows in order without counting them: a file cut short loses its last
+    faces, and one missing a vertex row takes the first face row as a vertex, both silently
+    (binary files it checks: their length must match the header).
+    """
+    head, sep, body = data.partition(b"end_header")
+    lines = [ln.split() for ln in head.decode("ascii", "replace").splitlines()]
+    if not (data.startswith(b"ply") and sep and ["format", "ascii"] in [ln[:2] for ln in lines]):
+        return
+    declared = sum(int(ln[2]) for ln in lines
+                   if len(ln) == 3 and ln[0] == "element" and ln[2].isdigit())
+    rows = sum(1 for ln in body.splitlines() if ln.strip())
+    if rows != declared:
+        raise InputError(name, f"{rows} data rows, but the PLY header declares {declared} "
+                         "elements (vertices and faces)")
 
 
 def scene_bounds(canyon: UrbanCanyon, points_xy: np.ndarray, pad: float) -> tuple[float, ...]:
@@ -118,7 +134,7 @@ def write_scene(canyon: UrbanCanyon, out_dir: str | Path,
                   f'\t\t<ref id="{mat}" name="bsdf"/>', "\t</shape>"]
     lines += ["</scene>", ""]
     xml = out / SCENE_FILE
-    xml.write_text("\n".join(lines))
+    atomic_write_text(xml, "\n".join(lines))
     return xml
 
 

@@ -9,7 +9,7 @@ import trimesh
 from veriloc_rt.config import SceneConfig
 from veriloc_rt.errors import InputError
 from veriloc_rt.world.scene.canyon import urban_canyon
-from veriloc_rt.world.scene.export import read_ply, scene_bounds, write_scene
+from veriloc_rt.world.scene.export import read_ply, scene_bounds, write_ply, write_scene
 
 
 def small(**kw):
@@ -96,6 +96,21 @@ def test_ply_round_trip(tmp_path):
     v, f = read_ply(tmp_path / "meshes" / "buildings.ply")
     v0, f0 = c.box_meshes()
     assert np.allclose(v, v0, atol=1e-4) and np.array_equal(f, f0)
+
+
+def test_ascii_and_binary_ply_read_the_same_mesh(tmp_path):
+    """trimesh reads both encodings; the binary file is the package's writer's."""
+    v0 = np.array([[0, 0, 0], [1.5, 0, 0], [0, 2.25, 0], [0, 0, 3.0]])
+    f0 = np.array([[0, 1, 2], [0, 1, 3], [1, 2, 3]])
+    write_ply(tmp_path / "b.ply", v0, f0)
+    (tmp_path / "a.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 3\nproperty list uchar int vertex_indices\nend_header\n"
+        + "".join(" ".join(map(str, r)) + "\n" for r in v0)
+        + "".join("3 " + " ".join(map(str, r)) + "\n" for r in f0))
+    for name in ("a.ply", "b.ply"):
+        v, f = read_ply(tmp_path / name)
+        assert np.array_equal(v, v0) and np.array_equal(f, f0), name   # all exact in float32
 
 
 def test_bad_parameters_are_input_errors():
