@@ -379,6 +379,35 @@ def test_points_beyond_the_schema():
     assert_one_line(*run_cli("bench", "--points", 1, "--out", "x")[::2], "--points")
 
 
+@pytest.mark.parametrize("command", ["run", "compare", "validate", "bench"])
+def test_huge_points_refused_before_any_work(tmp_path, command):
+    # 10**7 points was accepted by a run that then generated the drive for minutes; the maximum
+    # (MAX_POINTS) is checked before anything is built, written or traced
+    from veriloc_rt.config.world import MAX_POINTS
+
+    out = tmp_path / "out"
+    for points in (10**7, MAX_POINTS + 1):
+        line = assert_one_line(*run_cli(command, "--points", points, "--out", out)[::2],
+                               "--points")
+        assert f"<= {MAX_POINTS}" in line
+    assert not out.exists()   # refused before the output folder was even created
+
+
+def test_generated_drive_longer_than_the_generator_takes(tmp_path):
+    from veriloc_rt.config.world import MAX_DRIVE_M
+
+    # (num_points - 1) x dt_s x max_speed_mps: 9999 x 3.7 s x 13.9 m/s = 514.2 km > 500 km
+    data = {"trajectory": {"num_points": 10_000, "dt_s": 3.7, "max_speed_mps": 13.9}}
+    assert 9999 * 3.7 * 13.9 > MAX_DRIVE_M
+    line = assert_one_line(*run_cli("config", "show", config_file(tmp_path, data))[::2],
+                           "trajectory.num_points")
+    assert "514.2 km" in line
+    # the same drive from a CSV is bounded by the file's size instead: not refused here
+    data["trajectory"]["source"] = str(tmp_path / "t.csv")
+    (tmp_path / "t.csv").write_text(STREET_CSV)
+    assert run_cli("config", "show", config_file(tmp_path, data))[0] == 0
+
+
 def test_aes_key_length_against_aes_key_bits(tmp_path):
     keys = tmp_path / "keys"
     generate_keys(keys, range(8), aes_bits=256)
