@@ -364,6 +364,52 @@ def test_adversary_lag_beyond_the_trajectory_warns(tmp_path, caplog):
     assert any("trajectory.adversary_lag_points" in r.getMessage() for r in caplog.records)
 
 
+# STREET_CSV: 6 points 1 s and 5 m apart (s = 0, 5, ..., 25 m); the attack window of 6 points
+# (0.25 .. 0.75) is points floor(1.5) = 1 up to floor(4.5) = 4: points 1, 2, 3
+
+
+def _adversary_warnings(tmp_path, caplog, **trajectory) -> list[str]:
+    data = csv_config(tmp_path, STREET_CSV, **trajectory)
+    with caplog.at_level(logging.WARNING):
+        code, _, err = check(tmp_path, data)
+    assert code == 0, err
+    return [r.getMessage() for r in caplog.records
+            if r.getMessage().startswith("trajectory.adversary_lag_points")]
+
+
+def test_adversary_behind_the_start_in_the_attack_window_warns(tmp_path, caplog):
+    # lag 2: points 0, 1 wait behind the start; point 2 is at s = min(s[0], s[2] - 5) = 0, on
+    # the path; of the window's points 1, 2, 3 only point 1 is off the path
+    (msg,) = _adversary_warnings(tmp_path, caplog, adversary_lag_points=2)
+    assert "off the UE's path, at 1 of the 3 attack-window points (it joins the path at point 2)" \
+        in msg
+
+
+def test_adversary_without_lag_coincides_and_warns(tmp_path, caplog):
+    # lag 0: s_adv = s - 5 m, exactly the minimum separation behind the UE at every point
+    (msg,) = _adversary_warnings(tmp_path, caplog, adversary_lag_points=0)
+    assert "rides 5 m behind the UE at each of its 3 points" in msg
+
+
+def test_adversary_lagging_as_meant_does_not_warn(tmp_path, caplog):
+    # lag 1 = 5 m behind, the minimum separation exactly, reached by the lag: not glued
+    assert _adversary_warnings(tmp_path, caplog, adversary_lag_points=1) == []
+    # the same lag with a 6 m minimum: s_adv(1) = min(0, 5 - 6) = -1 m, off the path at point 1
+    (msg,) = _adversary_warnings(tmp_path, caplog, adversary_lag_points=1,
+                                 adversary_min_separation_m=6.0)
+    assert "at 1 of the 3 attack-window points (it joins the path at point 2)" in msg
+
+
+def test_adversary_warning_is_one_cli_line(tmp_path):
+    f = config_file(tmp_path, csv_config(tmp_path, STREET_CSV, adversary_lag_points=0))
+    r = _cli_subprocess("config", "check", f)
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        "WARNING veriloc_rt.sim.checks: trajectory.adversary_lag_points: 0 "), r.stderr
+    assert "Traceback" not in r.stderr and r.stdout.startswith("ok: 6 points")
+
+
 def test_region_larger_than_the_scene(tmp_path):
     data = dict(TINY, trajectory=dict(TINY["trajectory"], region_m=500.0))
     assert "scene.extent_m" in assert_one_line(*check(tmp_path, data)[::2], "trajectory.region_m")
@@ -448,11 +494,17 @@ def test_no_bs_reaching_the_ue_warns(caplog):
     from veriloc_rt.sim.checks import warn_unreachable
 
     with caplog.at_level(logging.WARNING):
-        warn_unreachable(np.zeros((5, 3), bool))
-    assert any("no serving BS reaches the UE" in r.getMessage() for r in caplog.records)
+        assert warn_unreachable(np.zeros((5, 3), bool)) == 5
+    assert [r.getMessage() for r in caplog.records][0].startswith(
+        "no serving BS reaches the UE at any of the 5 points")
     caplog.clear()
     with caplog.at_level(logging.WARNING):
-        warn_unreachable(np.eye(5, 3, dtype=bool))  # one link somewhere: no warning
+        assert warn_unreachable(np.eye(5, 3, dtype=bool)) == 2   # rows 3 and 4 have no link
+    # counted by hand: points 3 and 4 of 5, 2 / 5 = 40.0 %
+    assert "at 2 of the 5 points (40.0 %)" in caplog.records[0].getMessage()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):   # one link a point is enough: no warning
+        assert warn_unreachable(np.eye(5, 3, k=0, dtype=bool)[[0, 1, 2, 0, 1]]) == 0
     assert not caplog.records
 
 
