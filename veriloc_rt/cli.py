@@ -229,11 +229,15 @@ def cmd_keys(args) -> int:
 def cmd_bench(args) -> int:
     from .config import TrajectoryConfig
     from .config.fields import check_value
-    from .studies.bench import markdown_table, run_bench, write_bench
+    from .studies.bench import markdown_table, run_bench, sweep_settings, write_bench
 
     cfg = _load(args.config)
     if args.points is not None:
         check_value(TrajectoryConfig, "num_points", args.points, "--points")
+    if args.only and not sweep_settings(cfg, args.quick, tuple(args.only)):
+        raise InputError("--only", f"{' '.join(args.only)}: no knob of these groups applies to "
+                         f"propagation.model {cfg.propagation.model!r} (the ray-tracing knobs "
+                         "need 'raytrace')")
     _out(args.out)
     t = time.perf_counter()
     res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar(),

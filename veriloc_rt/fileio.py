@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["atomic_output", "atomic_write_bytes", "atomic_write_text", "TMP_MARK"]
+__all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "TMP_MARK"]
 
 #: part of every temporary file's name (so that a folder scan can skip them)
 TMP_MARK = ".tmp-"
@@ -38,6 +39,32 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def atomic_files(folder: str | Path) -> Iterator[Path]:
+    """Yield a temporary folder inside ``folder``; on a clean exit move every file written there
+    to the same relative path under ``folder``, each by one rename, then remove the temporary
+    folder.
+
+    For writers that produce a set of files (a scene's XML and its meshes): each target is its
+    old content or its complete new content. Files in subfolders are placed before the folder's
+    own files, so an index at the top (``scene.xml``) appears only after the files it names.
+    On an exception the temporary folder is removed and ``folder`` is left as it was.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = folder / f".files{TMP_MARK}{os.getpid()}-{secrets.token_hex(4)}"
+    tmp.mkdir()
+    try:
+        yield tmp
+        files = [p for p in tmp.rglob("*") if p.is_file()]
+        for src in sorted(files, key=lambda p: (-len(p.relative_to(tmp).parts), str(p))):
+            dst = folder / src.relative_to(tmp)
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(src, dst)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

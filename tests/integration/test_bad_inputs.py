@@ -381,6 +381,52 @@ def test_adversary_lag_beyond_the_trajectory_warns(tmp_path, caplog):
     assert any("trajectory.adversary_lag_points" in r.getMessage() for r in caplog.records)
 
 
+# STREET_CSV: 6 points 1 s and 5 m apart (s = 0, 5, ..., 25 m); the attack window of 6 points
+# (0.25 .. 0.75) is points floor(1.5) = 1 up to floor(4.5) = 4: points 1, 2, 3
+
+
+def _adversary_warnings(tmp_path, caplog, **trajectory) -> list[str]:
+    data = csv_config(tmp_path, STREET_CSV, **trajectory)
+    with caplog.at_level(logging.WARNING):
+        code, _, err = check(tmp_path, data)
+    assert code == 0, err
+    return [r.getMessage() for r in caplog.records
+            if r.getMessage().startswith("trajectory.adversary_lag_points")]
+
+
+def test_adversary_behind_the_start_in_the_attack_window_warns(tmp_path, caplog):
+    # lag 2: points 0, 1 wait behind the start; point 2 is at s = min(s[0], s[2] - 5) = 0, on
+    # the path; of the window's points 1, 2, 3 only point 1 is off the path
+    (msg,) = _adversary_warnings(tmp_path, caplog, adversary_lag_points=2)
+    assert "off the UE's path, at 1 of the 3 attack-window points (it joins the path at point 2)" \
+        in msg
+
+
+def test_adversary_without_lag_coincides_and_warns(tmp_path, caplog):
+    # lag 0: s_adv = s - 5 m, exactly the minimum separation behind the UE at every point
+    (msg,) = _adversary_warnings(tmp_path, caplog, adversary_lag_points=0)
+    assert "rides 5 m behind the UE at each of its 3 points" in msg
+
+
+def test_adversary_lagging_as_meant_does_not_warn(tmp_path, caplog):
+    # lag 1 = 5 m behind, the minimum separation exactly, reached by the lag: not glued
+    assert _adversary_warnings(tmp_path, caplog, adversary_lag_points=1) == []
+    # the same lag with a 6 m minimum: s_adv(1) = min(0, 5 - 6) = -1 m, off the path at point 1
+    (msg,) = _adversary_warnings(tmp_path, caplog, adversary_lag_points=1,
+                                 adversary_min_separation_m=6.0)
+    assert "at 1 of the 3 attack-window points (it joins the path at point 2)" in msg
+
+
+def test_adversary_warning_is_one_cli_line(tmp_path):
+    f = config_file(tmp_path, csv_config(tmp_path, STREET_CSV, adversary_lag_points=0))
+    r = _cli_subprocess("config", "check", f)
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        "WARNING veriloc_rt.sim.checks: trajectory.adversary_lag_points: 0 "), r.stderr
+    assert "Traceback" not in r.stderr and r.stdout.startswith("ok: 6 points")
+
+
 def test_region_larger_than_the_scene(tmp_path):
     data = dict(TINY, trajectory=dict(TINY["trajectory"], region_m=500.0))
     assert "scene.extent_m" in assert_one_line(*check(tmp_path, data)[::2], "trajectory.region_m")
@@ -394,6 +440,35 @@ def test_seed_beyond_the_schema():
 def test_points_beyond_the_schema():
     assert_one_line(*run_cli("config", "check", "--points", 10**12)[::2], "--points")
     assert_one_line(*run_cli("bench", "--points", 1, "--out", "x")[::2], "--points")
+
+
+@pytest.mark.parametrize("command", ["run", "compare", "validate", "bench"])
+def test_huge_points_refused_before_any_work(tmp_path, command):
+    # 10**7 points was accepted by a run that then generated the drive for minutes; the maximum
+    # (MAX_POINTS) is checked before anything is built, written or traced
+    from veriloc_rt.config.world import MAX_POINTS
+
+    out = tmp_path / "out"
+    for points in (10**7, MAX_POINTS + 1):
+        line = assert_one_line(*run_cli(command, "--points", points, "--out", out)[::2],
+                               "--points")
+        assert f"<= {MAX_POINTS}" in line
+    assert not out.exists()   # refused before the output folder was even created
+
+
+def test_generated_drive_longer_than_the_generator_takes(tmp_path):
+    from veriloc_rt.config.world import MAX_DRIVE_M
+
+    # (num_points - 1) x dt_s x max_speed_mps: 9999 x 3.7 s x 13.9 m/s = 514.2 km > 500 km
+    data = {"trajectory": {"num_points": 10_000, "dt_s": 3.7, "max_speed_mps": 13.9}}
+    assert 9999 * 3.7 * 13.9 > MAX_DRIVE_M
+    line = assert_one_line(*run_cli("config", "show", config_file(tmp_path, data))[::2],
+                           "trajectory.num_points")
+    assert "514.2 km" in line
+    # the same drive from a CSV is bounded by the file's size instead: not refused here
+    data["trajectory"]["source"] = str(tmp_path / "t.csv")
+    (tmp_path / "t.csv").write_text(STREET_CSV)
+    assert run_cli("config", "show", config_file(tmp_path, data))[0] == 0
 
 
 def test_aes_key_length_against_aes_key_bits(tmp_path):
@@ -436,11 +511,17 @@ def test_no_bs_reaching_the_ue_warns(caplog):
     from veriloc_rt.sim.checks import warn_unreachable
 
     with caplog.at_level(logging.WARNING):
-        warn_unreachable(np.zeros((5, 3), bool))
-    assert any("no serving BS reaches the UE" in r.getMessage() for r in caplog.records)
+        assert warn_unreachable(np.zeros((5, 3), bool)) == 5
+    assert [r.getMessage() for r in caplog.records][0].startswith(
+        "no serving BS reaches the UE at any of the 5 points")
     caplog.clear()
     with caplog.at_level(logging.WARNING):
-        warn_unreachable(np.eye(5, 3, dtype=bool))  # one link somewhere: no warning
+        assert warn_unreachable(np.eye(5, 3, dtype=bool)) == 2   # rows 3 and 4 have no link
+    # counted by hand: points 3 and 4 of 5, 2 / 5 = 40.0 %
+    assert "at 2 of the 5 points (40.0 %)" in caplog.records[0].getMessage()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):   # one link a point is enough: no warning
+        assert warn_unreachable(np.eye(5, 3, k=0, dtype=bool)[[0, 1, 2, 0, 1]]) == 0
     assert not caplog.records
 
 

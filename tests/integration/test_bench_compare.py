@@ -8,25 +8,53 @@ its most accurate setting, both models of the comparison ran every scenario on t
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
+import os
 from pathlib import Path
 
 import pytest
 
 from veriloc_rt.studies.bench import COST_RTOL, PARETO_METRIC
 from veriloc_rt.cli import main
+from veriloc_rt.fileio import TMP_MARK
 
 CONFIG = str(Path(__file__).resolve().parents[2] / "configs" / "ci-tiny.json")
 
 pytestmark = pytest.mark.raytrace
+#: the files each command placed by a rename (os.replace), by command
+RENAMED: dict[str, set] = {}
+
+
+@contextlib.contextmanager
+def renames(command: str):
+    """Record every file placed by ``os.replace`` (a temporary file renamed over the target)."""
+    placed = RENAMED.setdefault(command, set())
+    real = os.replace
+
+    def spy(src, dst):
+        real(src, dst)
+        placed.add(Path(dst).resolve())
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(os, "replace", spy)
+        yield
+
+
+def assert_written_atomically(out: Path, command: str, names) -> None:
+    """Each output was renamed into place (never written in place), and no temporary is left."""
+    for name in names:
+        assert (out / name).resolve() in RENAMED[command], name
+    assert not [p for p in out.rglob("*") if TMP_MARK in p.name]
 
 
 @pytest.fixture(scope="module")
 def bench_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    assert main(["bench", CONFIG, "--quick", "--points", "4", "--out", str(out)]) == 0
+    with renames("bench"):
+        assert main(["bench", CONFIG, "--quick", "--points", "4", "--out", str(out)]) == 0
     return out
 
 
@@ -82,11 +110,24 @@ def test_bench_files_and_numbers(bench_out):
     assert meta["num_points"] == 4 and meta["quick"] is True
 
 
+def test_bench_writes_each_file_atomically(bench_out):
+    assert_written_atomically(bench_out, "bench",
+                              ["bench.csv", "bench.json", "bench.md", "bench_pareto.png"])
+
+
 @pytest.fixture(scope="module")
 def compare_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("compare")
-    assert main(["compare", CONFIG, "--points", "8", "--workers", "1", "--out", str(out)]) == 0
+    with renames("compare"):
+        assert main(["compare", CONFIG, "--points", "8", "--workers", "1", "--out", str(out)]) == 0
     return out
+
+
+def test_compare_writes_each_file_atomically(compare_out):
+    assert_written_atomically(compare_out, "compare", [
+        "comparison.md", "comparison.json", "comparison_points.csv", "comparison_channel.csv",
+        "comparison_cdf.png", "comparison_detectors.png", "raytrace/metrics.json",
+        "uma/metrics.json", "raytrace/scene/scene.xml", "raytrace/scene/meshes/ground.ply"])
 
 
 def test_compare_files_and_numbers(compare_out):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from veriloc_rt.cli import main
+from veriloc_rt.fileio import TMP_MARK
 from veriloc_rt.studies.validate import MODELS
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -27,8 +29,30 @@ FLOAT32_TOL_DB = 0.01
 @pytest.fixture(scope="module")
 def validate_out(tmp_path_factory):
     out = tmp_path_factory.mktemp("validate")
-    assert main(["validate", CONFIG, "--points", str(POINTS), "--out", str(out)]) == 0
+    real, placed = os.replace, set()
+
+    def spy(src, dst):   # every file placed by renaming a temporary file over it
+        real(src, dst)
+        placed.add(Path(dst).resolve())
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(os, "replace", spy)
+        assert main(["validate", CONFIG, "--points", str(POINTS), "--out", str(out)]) == 0
+    RENAMED.update(placed)
     return out
+
+
+#: the files ``validate`` placed by a rename (os.replace)
+RENAMED: set = set()
+
+
+@pytest.mark.raytrace
+def test_validate_writes_each_file_atomically(validate_out):
+    for name in ("validation.json", "validation.md", "validation_links.csv",
+                 "validation_pathloss.png", "scene/scene.xml", "scene/meshes/buildings.ply",
+                 "scene/meshes/ground.ply"):
+        assert (validate_out / name).resolve() in RENAMED, name
+    assert not [p for p in validate_out.rglob("*") if TMP_MARK in p.name]
 
 
 @pytest.mark.raytrace

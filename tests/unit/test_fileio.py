@@ -31,3 +31,42 @@ def test_a_finished_write_replaces_the_file_with_the_usual_mode(tmp_path):
     reference.write_text("")
     atomic_write_text(tmp_path / "fresh.json", "{}")
     assert os.stat(tmp_path / "fresh.json").st_mode == os.stat(reference).st_mode
+
+
+def test_atomic_files_places_every_file_index_last(tmp_path, monkeypatch):
+    from veriloc_rt import fileio
+
+    (tmp_path / "scene.xml").write_text("old xml")
+    placed = []
+    real_replace = os.replace
+
+    def spy(src, dst):
+        placed.append(os.path.relpath(dst, tmp_path))
+        real_replace(src, dst)
+
+    monkeypatch.setattr(fileio.os, "replace", spy)
+    with fileio.atomic_files(tmp_path) as tmp:
+        assert tmp.parent == tmp_path   # same file system: each rename is atomic
+        (tmp / "meshes").mkdir()
+        (tmp / "meshes" / "b.ply").write_bytes(b"b")
+        (tmp / "meshes" / "a.ply").write_bytes(b"a")
+        (tmp / "scene.xml").write_text("new xml")
+        assert (tmp_path / "scene.xml").read_text() == "old xml"   # nothing placed yet
+    # the meshes first, the XML that names them last; the temporary folder is gone
+    assert placed == ["meshes/a.ply", "meshes/b.ply", "scene.xml"]
+    assert (tmp_path / "scene.xml").read_text() == "new xml"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["meshes", "scene.xml"]
+
+
+def test_atomic_files_failure_leaves_the_folder_as_it_was(tmp_path):
+    from veriloc_rt.fileio import atomic_files
+
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "meshes" / "a.ply").write_bytes(b"old")
+    with pytest.raises(RuntimeError):
+        with atomic_files(tmp_path) as tmp:
+            (tmp / "meshes").mkdir()
+            (tmp / "meshes" / "a.ply").write_bytes(b"new, compl")
+            raise RuntimeError("killed mid-write")
+    assert (tmp_path / "meshes" / "a.ply").read_bytes() == b"old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["meshes"]

@@ -8,12 +8,19 @@ from ..errors import bad_value
 from ..inputs import check_path
 from .fields import param
 
-__all__ = ["MIN_ANTENNA_HEIGHT_M", "ITU_MATERIAL_RANGES_GHZ", "itu_material_problem", "SceneConfig", "TopologyConfig",
+__all__ = ["MAX_DRIVE_M", "MAX_POINTS", "MIN_ANTENNA_HEIGHT_M", "ITU_MATERIAL_RANGES_GHZ", "itu_material_problem", "SceneConfig", "TopologyConfig",
            "TrajectoryConfig"]
 
 #: antennas sit above this height, m: TR 38.901's effective environment height h_E = 1 m (Table
 #: 7.4.1-1 note 1), below which the UMa path loss and its breakpoint distance are undefined
 MIN_ANTENNA_HEIGHT_M = 1.0
+
+#: most trajectory points of one run (about 8x the paper's 1200-point drive): a run holds every
+#: point's links and chain results in memory, and the geometry alone grows with the points
+MAX_POINTS = 10_000
+#: longest route the street generator drives, m ((num_points - 1) x dt_s x max_speed_mps): it
+#: integrates the speed profile in Python every 0.25 m of route
+MAX_DRIVE_M = 500e3
 
 #: ITU-R P.2040-3 Table 3 materials Sionna RT knows (``sionna.rt.radio_materials.itu``), with
 #: the frequency ranges, GHz, its fitted parameters hold for (a test checks the copy)
@@ -110,7 +117,14 @@ class TrajectoryConfig:
 
     source: str = param("generator", "'generator' or a CSV path with columns t,x,y[,z]")
     num_points: int = param(120, "number of trajectory points (the built-in default is small "
-                            "enough for a few minutes; configs/paper-*.json use the paper's 1200)", lo=2, hi=1_000_000)
+                            "enough for a few minutes; configs/paper-*.json use the paper's "
+                            "1200). The maximum bounds a run's memory and time: it holds every "
+                            "point's links and chain results in memory and its time grows with "
+                            "the points (docs/performance.md); for more statistics use "
+                            "run.realisations. A generated drive, (num_points - 1) x dt_s x "
+                            "max_speed_mps, is at most 500 km (the generator integrates the "
+                            "speed profile every 0.25 m of route)",
+                            lo=2, hi=MAX_POINTS)
     dt_s: float = param(1.0, "time between points", lo=0.001, hi=3600.0, lo_open=True)
     ue_height_m: float = param(1.5, "UE antenna height above ground (above h_E = 1 m, as "
                                "topology.bs_height_m)", lo=MIN_ANTENNA_HEIGHT_M, lo_open=True,
@@ -134,6 +148,15 @@ class TrajectoryConfig:
     def validate(self, path: str) -> None:
         if self.source != "generator":
             check_path(self.source, f"{path}.source")
+        else:
+            drive_m = (self.num_points - 1) * self.dt_s * self.max_speed_mps
+            if drive_m > MAX_DRIVE_M:
+                raise bad_value(f"{path}.num_points", self.num_points,
+                                f"a generated drive of at most {MAX_DRIVE_M / 1e3:g} km; "
+                                f"(num_points - 1) x dt_s x max_speed_mps is "
+                                f"{drive_m / 1e3:.4g} km (the generator integrates the speed "
+                                "profile every 0.25 m of its route): fewer points, a shorter "
+                                "dt_s or a lower max_speed_mps")
         if self.min_speed_mps > self.max_speed_mps:
             raise bad_value(f"{path}.min_speed_mps", self.min_speed_mps,
                             f"a value <= max_speed_mps ({self.max_speed_mps})")

@@ -26,7 +26,12 @@ from ..world.scene.export import scene_itu_materials
 
 log = logging.getLogger(__name__)
 
-__all__ = ["check_inputs", "check_materials", "check_run_inputs", "warn_unreachable"]
+__all__ = ["check_inputs", "check_materials", "check_run_inputs", "warn_adversary",
+           "warn_unreachable"]
+
+#: arc lengths along the path are sums of float64 steps over at most a few hundred km: equal
+#: gaps agree to ~1e-10 m; a gap within this of adversary_min_separation_m is that minimum
+ARC_TOL_M = 1e-6
 
 
 def check_run_inputs(cfg: Config, geometry: Geometry) -> None:
@@ -42,11 +47,47 @@ def check_run_inputs(cfg: Config, geometry: Geometry) -> None:
         load_keys(cfg.security.keys_dir, range(len(geometry.bs_pos)),
                   aes_bits=cfg.security.aes_key_bits)
     # warnings last: a run that stops at an error prints that one line only
-    lag = cfg.trajectory.adversary_lag_points
-    if lag >= n:
-        log.warning("trajectory.adversary_lag_points: %d is not below the trajectory's %d points, "
-                    "so the adversary never starts following the UE: it waits behind the "
-                    "start for the whole run", lag, n)
+    warn_adversary(cfg, geometry)
+
+
+def warn_adversary(cfg: Config, geometry: Geometry) -> str | None:
+    """Warn when the adversary does not follow the UE as ``trajectory.adversary_lag_points``
+    means it to in the attack window (the points its attacks use); return the warning.
+
+    The adversary (:func:`~veriloc_rt.world.trajectory.follower`) is ``lag`` points behind on
+    the UE's path and at least ``adversary_min_separation_m`` behind along it. It *trails off
+    the trajectory* where it is still behind the path's start (its first ``lag`` points, or
+    more while the UE has not yet covered the minimum separation), and it *coincides with* the
+    UE, the lag having no effect, where the UE covered less than the minimum separation in the
+    last ``lag`` points, so that the adversary sits at exactly that separation behind it.
+    """
+    t = cfg.trajectory
+    lag, sep = t.adversary_lag_points, t.adversary_min_separation_m
+    ue, adv = geometry.ue, geometry.adversary
+    n = ue.num_points
+    window = cfg.run.attack_points(n)
+    off = adv.s < ue.s[0]            # [num_points] bool: behind the start, off the UE's path
+    k = np.arange(n)
+    lag_gap = np.where(k >= lag, ue.s - ue.s[np.maximum(k - lag, 0)], np.inf)  # m, along path
+    glued = ~off & (lag_gap < sep - ARC_TOL_M)   # the separation, not the lag, places it
+    head = f"trajectory.adversary_lag_points: {lag} (adversary_min_separation_m {sep:g} m): "
+    num_win = int(window.sum())
+    if off.all():
+        msg = (head + f"the adversary never reaches the UE's path: it waits behind the "
+               f"trajectory's start at all {n} points, so the attacks come from there")
+    elif (off & window).any():
+        msg = (head + f"the adversary is still behind the trajectory's start, off the UE's "
+               f"path, at {int((off & window).sum())} of the {num_win} attack-window points "
+               f"(it joins the path at point {int(np.argmin(off))})")
+    elif num_win and glued[window].all():
+        msg = (head + f"the lag places the adversary nowhere: the UE covers less than "
+               f"{sep:g} m in {lag} points throughout the attack window, so the adversary "
+               f"rides {sep:g} m behind the UE at each of its {num_win} points (the attacks "
+               "come from right beside the UE)")
+    else:
+        return None
+    log.warning("%s", msg)
+    return msg
 
 
 def check_materials(cfg: Config) -> None:
@@ -77,18 +118,26 @@ def check_inputs(cfg: Config, scene_dir: str | Path) -> Geometry:
     return geometry
 
 
-def warn_unreachable(has_path: np.ndarray) -> None:
-    """Warn when no serving BS reaches the UE at any point.
+def warn_unreachable(has_path: np.ndarray) -> int:
+    """Warn when no serving BS reaches the UE at some or all points; return how many.
 
     A warning rather than an error: it is known only after the propagation is computed (every
-    check of the inputs comes before that), and the run's result, a service failure at every
-    point, is a correct outcome of the scene as given (a closed room, BSs below the roofs)
-    that the results files then record.
+    check of the inputs comes before that), and the result at those points, a service failure,
+    is a correct outcome of the scene as given (a closed room, BSs below the roofs, a street
+    the trajectory leaves) that the results files then record.
 
     :param has_path: [num_points, num_bs] bool, the serving link has a path
+    :returns: the number of points at which no serving link has a path
     """
-    if has_path.size and not has_path.any():
-        log.warning("no serving BS reaches the UE at any of the %d points (no propagation path "
-                    "on any link): every point is a service failure; check the scene (closed "
-                    "meshes around the trajectory, BSs inside buildings) and topology.bs_height_m",
-                    has_path.shape[0])
+    if not has_path.size:
+        return 0
+    unreached = ~has_path.any(axis=1)
+    n, total = int(unreached.sum()), has_path.shape[0]
+    if n:
+        where = (f"any of the {total} points" if n == total
+                 else f"{n} of the {total} points ({100.0 * n / total:.1f} %)")
+        log.warning("no serving BS reaches the UE at %s (no propagation path on any of their "
+                    "serving links): %s a service failure; check the scene (closed meshes "
+                    "around the trajectory, BSs inside buildings) and topology.bs_height_m",
+                    where, "every point is" if n == total else "each is")
+    return n

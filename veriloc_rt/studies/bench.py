@@ -49,6 +49,7 @@ import numpy as np
 
 from ..config import Config, config_from_dict, config_to_dict
 from ..constants import SPEED_OF_LIGHT
+from ..fileio import atomic_output, atomic_write_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 
 log = logging.getLogger(__name__)
@@ -557,12 +558,14 @@ def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rows = [_row(s) for s in res.settings]
-    with open(out / "bench.csv", "w", newline="") as f:
+    # every file through a temporary file renamed over it: a stopped bench leaves no half file
+    with atomic_output(out / "bench.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
         w.writeheader()
         for r in rows:
             w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
-    (out / "bench.json").write_text(json.dumps({"meta": res.meta, "settings": rows}, indent=2))
+    atomic_write_text(out / "bench.json", json.dumps({"meta": res.meta, "settings": rows},
+                                                     indent=2))
     md = (f"# Fidelity sweep ({res.meta['num_points']} points, propagation "
           f"{res.meta['propagation_model']}, seed {res.meta['seed']})\n\n"
           "Deviations are from the reference (highest level of every knob of the group; for "
@@ -573,7 +576,7 @@ def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
           "magnitude. "
           "The noise-floor row is the config's setting against itself with other noise draws.\n\n"
           + markdown_table(res))
-    (out / "bench.md").write_text(md)
+    atomic_write_text(out / "bench.md", md)
     plot_pareto(rows, out / "bench_pareto.png",
                 {g: (PARETO_METRIC[g], PARETO_LABEL[g]) for g in PARETO_METRIC})
     return {k: out / k for k in ("bench.csv", "bench.json", "bench.md", "bench_pareto.png")}

@@ -30,6 +30,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import Config
+from ..fileio import atomic_output, atomic_write_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles
 from ..report.propagation_summary import rms_delay_spread
 
@@ -213,13 +214,15 @@ def _write(res: ComparisonResult, cfg: Config) -> None:
     from ..report.plots import plot_comparison_cdfs, plot_comparison_detectors
 
     out = res.out_dir
-    (out / "comparison.md").write_text(
+    # every file through a temporary file renamed over it: a stopped compare leaves no half file
+    atomic_write_text(
+        out / "comparison.md",
         f"# Ray tracing vs TR 38.901 UMa ({len(res.benign['raytrace'].points)} points, seed "
         f"{cfg.seed}, UMa mode {cfg.propagation.uma_mode})\n\n" + markdown(res))
-    (out / "comparison.json").write_text(json.dumps(
+    atomic_write_text(out / "comparison.json", json.dumps(
         {"channel": res.channel, "errors": res.errors, "detectors": res.detectors,
          "timing_s": res.timing_s}, indent=2))
-    with open(out / "comparison_points.csv", "w", newline="") as f:
+    with atomic_output(out / "comparison_points.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["model", "point", "bs", "toa_bias_m", "rstd_error_m", "aoa_error_deg",
                     "position_error_m"])
@@ -230,7 +233,7 @@ def _write(res: ComparisonResult, cfg: Config) -> None:
                 for j in range(b.toa.shape[1]):
                     w.writerow([model, int(i), j, b.toa_bias_m[r, j], rstd[r, j],
                                 b.aoa_error_deg[r, j], b.position_error_m[r]])
-    with open(out / "comparison_channel.csv", "w", newline="") as f:
+    with atomic_output(out / "comparison_channel.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["statistic", "quantile", "raytrace", "uma", "tr38901_los", "tr38901_nlos"])
         tab = res.channel["uma_table"]

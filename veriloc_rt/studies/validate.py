@@ -34,6 +34,7 @@ import numpy as np
 from ..config import Config
 from .diagnostics import finite_percentiles
 from ..errors import InputError
+from ..fileio import atomic_output, atomic_write_text
 from ..propagation import pathloss_models as plm
 
 log = logging.getLogger(__name__)
@@ -381,15 +382,17 @@ def write_validation(res: ValidationResult) -> dict:
               for n in MODELS}
     files = {"json": out / "validation.json", "md": out / "validation.md",
              "csv": out / "validation_links.csv", "png": out / "validation_pathloss.png"}
-    files["json"].write_text(json.dumps(
+    # every file through a temporary file renamed over it: a stopped validate leaves no half file
+    atomic_write_text(files["json"], json.dumps(
         {"inputs": res.inputs, "models": models, "summary": res.summary, "bins": res.bins,
          "timing_s": res.timing_s}, indent=2))
     inp = res.inputs
-    files["md"].write_text(
+    atomic_write_text(
+        files["md"],
         f"# Traced path loss against published models ({inp['num_points']} points, seed "
         f"{inp['seed']})\n\n" + format_validation(res) + "\n\nModels: " + "; ".join(
             f"{v['label']}: {v['source']}" for v in models.values()) + ".\n")
-    with open(files["csv"], "w", newline="") as f:
+    with atomic_output(files["csv"]) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["point", "bs", "d_2d_m", "d_3d_m", "has_path", "los", "num_paths", "phi_deg",
                     "covered_m", "pl_db"] + [f"{n}_db" for n in MODELS])

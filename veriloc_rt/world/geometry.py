@@ -13,6 +13,7 @@ import numpy as np
 
 from ..config import Config
 from ..errors import InputError
+from ..fileio import atomic_files
 from ..rng import stream
 from .scene.canyon import UrbanCanyon, urban_canyon
 from .scene.export import scene_bounds, write_scene
@@ -83,7 +84,9 @@ def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
         keep_near = np.concatenate([bs_pos[:, :2], ue.densified_xy(), adv.pos[:, :2]])
         cropped = full.crop(keep_near, cfg.scene.margin_m)
         bounds = scene_bounds(cropped, np.concatenate([bs_pos[:, :2], ue.pos[:, :2]]), pad=20.0)
-        xml = write_scene(cropped, scene_dir, bounds)
+        # written aside, then each file renamed into place (XML last): a stop leaves no half file
+        with atomic_files(scene_dir) as tmp:
+            xml = Path(scene_dir) / write_scene(cropped, tmp, bounds).relative_to(tmp)
         log.info("canyon: %d of %d buildings within %.0f m of the BSs and the trajectory",
                  cropped.num_buildings, full.num_buildings, cfg.scene.margin_m)
         scene = cropped

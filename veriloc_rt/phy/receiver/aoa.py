@@ -25,8 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.signal import find_peaks
 
 __all__ = ["AoAEstimate", "AoAEstimator", "esprit", "music", "resolve_ambiguity", "ula_steering",
            "sample_covariance", "forward_backward", "spatial_smoothing", "mdl_order"]
@@ -211,6 +209,11 @@ class AoAEstimator:
 
     def _music(self, en: np.ndarray, k: int) -> np.ndarray:
         """Highest k peaks of 1 / |E_n^H a(mu)|^2 on a mu grid, refined by a bounded search."""
+        # imported here: scipy.signal pulls in scipy.stats (about a second), which a run that
+        # computes no chain (a resume past its last point) never needs
+        from scipy.optimize import minimize_scalar
+        from scipy.signal import find_peaks
+
         sub = en.shape[0]
         grid = np.linspace(-1.0, 1.0, self.grid_points)
 

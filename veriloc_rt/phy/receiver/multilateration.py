@@ -24,8 +24,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import chi2
+from scipy.special import chdtri   # chi-square inverse survival function: chi2.isf(q, k) is
+                                   # chdtri(k, q) (scipy.stats computes it so), without
+                                   # importing scipy.stats
 
 from ...constants import SPEED_OF_LIGHT
 
@@ -214,6 +215,10 @@ class Multilaterator:
 
     # -- internals ---------------------------------------------------------------------------
     def _solve(self, bs: np.ndarray, rd: np.ndarray, ref: int) -> MultilaterationResult:
+        # imported on the first fix: a run that computes no chain (a resume past its last
+        # point) then never loads scipy.optimize
+        from scipy.optimize import least_squares
+
         n = bs.shape[0]
         others = np.array([i for i in range(n) if i != ref])
         m = n - 1
@@ -287,9 +292,9 @@ class Multilaterator:
                                          f"rms range residual {rms:.2f} m > "
                                          f"{self.max_residual_m:.2f} m (inconsistent RSTDs)",
                                          **common)
-        if self.sigma_m and dof > 0 and stat > chi2.isf(self.false_alarm, dof):
+        if self.sigma_m and dof > 0 and stat > chdtri(dof, self.false_alarm):
             return MultilaterationResult(pos, False, STATUS_RESIDUAL,
-                                         f"chi-square {stat:.1f} > {chi2.isf(self.false_alarm, dof):.1f}"
+                                         f"chi-square {stat:.1f} > {chdtri(dof, self.false_alarm):.1f}"
                                          f" (dof {dof}, P_fa {self.false_alarm:g})", **common)
         return MultilaterationResult(pos, True, STATUS_OK, "", **common)
 

@@ -17,7 +17,6 @@ from importlib import resources
 
 import numpy as np
 import scipy.sparse as sp
-from ldpc import BpDecoder
 
 #: base graph 2 dimensions (TS 38.212 5.3.2): 42 rows, 52 columns, 10 systematic columns
 BG2_ROWS, BG2_COLS, BG2_KB = 42, 52, 10
@@ -117,10 +116,18 @@ class NRLDPC:
         hp_inv = _gf2_inverse(self.h[:, self.k_full:].toarray())
         # parity = M s mod 2, as a float64 product (BLAS; exact: the sums are integers <= K)
         self._encode_matrix = ((hp_inv.astype(np.int64) @ hs) % 2).astype(np.float64)
-        self._decoder = BpDecoder(
-            self.h, error_channel=np.full(self.n, 0.1), max_iter=iterations,
-            bp_method="product_sum" if method == "sum_product" else "minimum_sum",
-            ms_scaling_factor=0.75 if method == "min_sum" else 1.0,
+
+    @functools.cached_property
+    def _decoder(self):
+        """The belief-propagation decoder (the ``ldpc`` package), built on the first decode:
+        importing that package loads its quantum-code decoders too (about half a second), which
+        a run that decodes nothing (a resume past its last point, a run without tags) skips."""
+        from ldpc import BpDecoder
+
+        return BpDecoder(
+            self.h, error_channel=np.full(self.n, 0.1), max_iter=self.iterations,
+            bp_method="product_sum" if self.method == "sum_product" else "minimum_sum",
+            ms_scaling_factor=0.75 if self.method == "min_sum" else 1.0,
             schedule="parallel", input_vector_type="received_vector")
 
     @property

@@ -1,0 +1,54 @@
+"""The heavy packages a run needs only to compute chains are imported when a chain is computed.
+
+A resume whose points are all in --out computes no chain: its time is the interpreter's start,
+the imports, the stored results and the plots (docs/running.md). scipy.signal (which loads
+scipy.stats), scipy.optimize and the ldpc package (which loads its quantum-code decoders) were
+half of that start; they are imported where they are used.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy.special import chdtri
+
+ROOT = Path(__file__).resolve().parents[2]
+#: loaded by the chain's estimators and decoder only
+LAZY = ("scipy.stats", "scipy.signal", "scipy.optimize", "ldpc")
+
+
+def test_the_run_modules_load_no_chain_only_package():
+    code = ("import sys, veriloc_rt.cli, veriloc_rt.sim.engine, veriloc_rt.report.plots; "
+            f"print(' '.join(m for m in {LAZY!r} if m in sys.modules))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                       check=True)
+    assert r.stdout.strip() == "", r.stdout
+
+
+#: chdtri inverts the regularised incomplete gamma function iteratively: agreement with the
+#: closed forms to ~1e-14 relative (1.9e-14 measured for k = 1); 1e-10 is ample
+CHI2_RTOL = 1e-10
+
+
+def test_chi_square_gate_without_scipy_stats():
+    # the multilaterator's gate chdtri(k, q) is chi2.isf(q, k); closed forms at q = 1e-3:
+    # k = 1: (Phi^-1(1 - q/2))^2 with Phi^-1(0.9995) = 3.2905267314919 (normal quantile);
+    # k = 2: -2 ln q = 13.8155
+    assert np.isclose(chdtri(1, 1e-3), 3.2905267314919255 ** 2, rtol=CHI2_RTOL, atol=0)
+    assert np.isclose(chdtri(2, 1e-3), -2.0 * np.log(1e-3), rtol=CHI2_RTOL, atol=0)
+
+
+def test_ldpc_decoder_built_on_first_decode():
+    from veriloc_rt.phy.security.ldpc import NRLDPC
+
+    code = NRLDPC(256, iterations=25)
+    assert "_decoder" not in vars(code)            # nothing of the ldpc package yet
+    bits = np.random.default_rng(0).integers(0, 2, 256).astype(np.uint8)
+    cw = code.encode(bits)
+    llr = np.where(cw == 0, 4.0, -4.0)             # noiseless, confident LLRs
+    decoded, ok = code.decode(llr)
+    assert "_decoder" in vars(code)
+    assert bool(ok) and np.array_equal(decoded, bits)
