@@ -33,12 +33,13 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from veriloc_rt.phy.channel import add_noise  # noqa: E402
+from veriloc_rt.phy.noise import NoiseSource, WhiteNoise  # noqa: E402
 from veriloc_rt.config.channel import ChannelConfig, ReceiverConfig  # noqa: E402
 from veriloc_rt.config import ArrayConfig  # noqa: E402
 from veriloc_rt.config.nr import NRConfig  # noqa: E402
 from veriloc_rt.propagation.cir import ula_element_positions  # noqa: E402
 from veriloc_rt.propagation.uma import uma_cir  # noqa: E402
-from veriloc_rt.phy.receiver.chain import PositioningChain  # noqa: E402
+from veriloc_rt.phy.chain import PositioningChain  # noqa: E402
 from veriloc_rt.config.security import SecurityConfig  # noqa: E402
 from veriloc_rt.constants import SPEED_OF_LIGHT  # noqa: E402
 from veriloc_rt.phy.security.keys import simulated_keys  # noqa: E402
@@ -60,13 +61,13 @@ def synthetic_uma(num_points: int, mode: str, seed: int):
 
 
 def make_chain(domain: str, rate: float | None, bs_ids, noise: bool = True, decimation: int = 1,
-               cls=PositioningChain, receiver: ReceiverConfig | None = None,
+               source: NoiseSource | None = None, receiver: ReceiverConfig | None = None,
                front_end: str = "correlator") -> PositioningChain:
     keys = simulated_keys(sorted(set(int(b) for b in bs_ids)), np.random.default_rng(7))
-    return cls(NRConfig(sample_rate_hz=rate), SecurityConfig(),
+    return PositioningChain(NRConfig(sample_rate_hz=rate), SecurityConfig(),
                             ChannelConfig(domain=domain, noise=noise, time_decimation=decimation,
                                           time_front_end=front_end),
-                            receiver or ReceiverConfig(), ArrayConfig(), FC, keys)
+                            receiver or ReceiverConfig(), ArrayConfig(), FC, keys, noise=source)
 
 
 def run(chain: PositioningChain, cir, points, seed: int = SEED) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -91,24 +92,24 @@ def pct(err: np.ndarray) -> str:
     return f"p50 {np.percentile(e, 50):7.2f} m  p95 {np.percentile(e, 95):7.2f} m  ({e.size} fixes)"
 
 
-class RecordingChain(PositioningChain):
-    """The reference: keeps the downlink noise it drew (IQ [A, N]) for the default chain."""
+class RecordingNoise(WhiteNoise):
+    """The reference's: keeps the downlink noise it drew (IQ [A, N]) for the default chain."""
 
     last_noise: np.ndarray | None = None
 
-    def _add_noise(self, x, rng):
-        n = add_noise(np.zeros_like(x), self.noise_var, rng)   # the library's draw, unchanged
+    def __call__(self, x, variance, rng):
+        n = add_noise(np.zeros_like(x), variance, rng)   # the library's draw, unchanged
         self.last_noise = n
         return x + n
 
 
-class GivenNoiseChain(PositioningChain):
-    """The default: adds a given noise grid [A, S, 14, K] instead of drawing one."""
+class GivenNoise(WhiteNoise):
+    """The default's: adds a given noise grid [A, S, 14, K] instead of drawing one."""
 
     given: np.ndarray | None = None
 
-    def _add_noise(self, x, rng):
-        return super()._add_noise(x, rng) if self.given is None else x + self.given
+    def __call__(self, x, variance, rng):
+        return super().__call__(x, variance, rng) if self.given is None else x + self.given
 
 
 def project_noise(ref: PositioningChain, fast: PositioningChain, noise_iq: np.ndarray) -> np.ndarray:
@@ -121,7 +122,8 @@ def project_noise(ref: PositioningChain, fast: PositioningChain, noise_iq: np.nd
     return g * np.sqrt(fast.ofdm.sample_rate_hz / ref.ofdm.sample_rate_hz)
 
 
-def run_pair(fast: GivenNoiseChain, ref: RecordingChain, cir, points, seed: int = SEED):
+def run_pair(fast: PositioningChain, ref: PositioningChain, given: GivenNoise, recorded: RecordingNoise,
+             cir, points, seed: int = SEED):
     """Both chains point by point on the same CIRs; with noise, the default gets the reference's
     noise realisation projected on its REs. DL fixes [n, 3] (NaN when not ok), s/point each."""
     dl_f = np.full((len(points), 3), np.nan)
@@ -133,12 +135,12 @@ def run_pair(fast: GivenNoiseChain, ref: RecordingChain, cir, points, seed: int 
         t = time.perf_counter()
         r = ref(cir, int(k), np.random.default_rng([seed, int(k)]))
         t_r += time.perf_counter() - t
-        fast.given = (project_noise(ref, fast, ref.last_noise[:, :ref.frame_samples])
-                      if ref.noise_var > 0 else None)
+        given.given = (project_noise(ref, fast, recorded.last_noise[:, :ref.frame_samples])
+                       if ref.noise_var > 0 else None)
         t = time.perf_counter()
         f = fast(cir, int(k), np.random.default_rng([seed, int(k)]))
         t_f += time.perf_counter() - t
-        fast.given = None
+        given.given = None
         if r.position.ok:
             dl_r[i] = r.position.position
         if f.position.ok:
@@ -154,16 +156,17 @@ def compare(name: str, cir, truth: np.ndarray, ref_points: int, decimation: int 
     ids = np.unique(cir.tx_index[cir.tx_index >= 0])
     pts = np.arange(min(ref_points, cir.num_points))
     for front_end, noise in ((f, n) for f in front_ends for n in noises):
-        fast = make_chain("frequency", None, ids, noise, cls=GivenNoiseChain)
-        ref = make_chain("time", 122.88e6, ids, noise, decimation, cls=RecordingChain,
+        given, recorded = GivenNoise(), RecordingNoise()
+        fast = make_chain("frequency", None, ids, noise, source=given)
+        ref = make_chain("time", 122.88e6, ids, noise, decimation, source=recorded,
                          front_end=front_end)
-        dl_f, dl_r, t_f, t_r = run_pair(fast, ref, cir, pts)
+        dl_f, dl_r, t_f, t_r = run_pair(fast, ref, given, recorded, cir, pts)
         dev = np.linalg.norm(dl_f[:, :2] - dl_r[:, :2], axis=1)
         both = np.isfinite(dl_f[:, 0]) == np.isfinite(dl_r[:, 0])
         tag = ("same noise" if noise else "noiseless") + f", reference front end {front_end}"
         print(f"[{name}, {tag}] seconds per point: default (frequency, "
               f"{fast.ofdm.sample_rate_hz / 1e6:.2f} MHz) {t_f:.3f} s, reference (time, 122.88 MHz, "
-              f"paths applied at 122.88/{ref.decimation} MHz) "
+              f"paths applied at 122.88/{ref.downlink.decimation} MHz) "
               f"{t_r:.3f} s, speed-up {t_r / t_f:.1f}x over {len(pts)} points")
         print(f"[{name}, {tag}] DL deviation default vs reference: {pct(dev)}; "
               f"fix / no-fix agree on {100 * both.mean():.0f} % of points")

@@ -26,7 +26,7 @@ CONFIGS = {"uma": ROOT / "configs" / "paper-uma.json", "raytrace": ROOT / "confi
 #: seconds, from the issue
 TARGETS = {"uma": 60.0, "raytrace cold": 300.0, "raytrace warm": 60.0}
 MEMORY_TARGET_MIB = 8 * 1024
-#: receiver stages of the chain (veriloc_rt.phy.receiver.chain.STAGES minus waveform and channel)
+#: receiver stages of the chain (veriloc_rt.phy.chain.STAGES minus waveform and channel)
 RECEIVER = ("toa", "position", "aoa", "tags", "uplink")
 
 

@@ -8,7 +8,7 @@ config (what ``veriloc-rt config show`` prints: every field's default).
 (``veriloc_rt.report.results.CSV_COLUMNS``), of ``montecarlo.csv``
 (``veriloc_rt.sim.montecarlo.CSV_COLUMNS``) and of ``bench.csv`` (``veriloc_rt.studies.bench.CSV_FIELDS``),
 the keys ``scenario_metrics`` puts in ``metrics.json`` (computed here on two synthetic rows) and
-the chain's timed stages (``veriloc_rt.phy.receiver.chain.STAGES``). The descriptions are written
+the chain's timed stages (``veriloc_rt.phy.chain.STAGES``). The descriptions are written
 here, one per declared name: a column or key that the code adds without a description here
 stops this script with an error naming it. The files whose layout the code writes inline
 (``run.json``, ``propagation_summary.json``, the plots, the ``compare`` and ``validate`` files)
@@ -41,7 +41,7 @@ if str(ROOT) not in sys.path:  # run as a script from a checkout without install
 from veriloc_rt.sim import montecarlo  # noqa: E402
 from veriloc_rt.studies import bench  # noqa: E402
 from veriloc_rt.config import Config, config_schema, config_to_dict  # noqa: E402
-from veriloc_rt.phy.receiver.chain import STAGES  # noqa: E402
+from veriloc_rt.phy.chain import STAGES  # noqa: E402
 from veriloc_rt.report.results import CSV_COLUMNS, scenario_metrics  # noqa: E402
 from veriloc_rt.detectors.outcomes import DETECTORS, OUTCOMES, PointRow  # noqa: E402
 
@@ -244,7 +244,7 @@ TIMING_DOC = {
     "peak_rss_worker_mib": "peak resident memory of the largest worker, MiB",
 }
 
-#: what each chain stage covers (receiver/chain.py STAGES)
+#: what each chain stage covers (phy/chain/positioning.py STAGES)
 STAGE_DOC = {
     "waveform": "PRS and tag grids, replicas",
     "channel": "CIRs applied, Doppler, power control and noise",

@@ -109,7 +109,7 @@ def cmd_run(args) -> int:
     print(f"time: propagation {t['propagation']:.1f} s, chain {t.get('chain_total', 0):.1f} s, "
           f"adversary {t.get('adversary_total', 0):.1f} s, detectors "
           f"{t.get('detectors_total', 0):.1f} s; total {t['total']:.1f} s")
-    from .phy.receiver.chain import STAGES
+    from .phy.chain import STAGES
 
     print("chain by stage (s, summed over workers): " + ", ".join(
         f"{k} {t[f'{k}_total']:.1f}" for k in STAGES if f"{k}_total" in t))

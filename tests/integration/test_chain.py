@@ -18,7 +18,9 @@ from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.propagation.cir import CIR, array_response, ula_element_positions
 from veriloc_rt.propagation.uma import uma_cir
-from veriloc_rt.phy.receiver.chain import PositioningChain
+from veriloc_rt.phy.chain import FIX_ONLY, Adversary, PositioningChain
+from veriloc_rt.phy.noise import GridNoise, WhiteNoise
+from veriloc_rt.phy.nr.ofdm import OFDM
 from veriloc_rt.config.security import SecurityConfig
 from veriloc_rt.phy.security.keys import simulated_keys
 
@@ -127,10 +129,10 @@ def test_adversary_grid_and_iq_inputs_agree():
               rx_pos=adv.rx_pos, carrier_frequency=FC)
     chain = make_chain(noise=False, tags="none", uplink=False)
     # the adversary replays BS 1's PRS 48 dBm strong: BS 1's peak is then the adversary's
-    grid = chain.frame_signals((0, 1, 2), 0)["replicas"][1]
-    r_grid = chain(cir, 0, np.random.default_rng(0), adv_ue=adv, adversary_signal=grid)
-    r_iq = chain(cir, 0, np.random.default_rng(0), adv_ue=adv,
-                 adversary_signal=chain.ofdm.modulate(grid, chain.slots))
+    grid = chain.frame_signals((0, 1, 2), 0).replicas[1]
+    r_grid = chain(cir, 0, np.random.default_rng(0), adversary=Adversary(adv, grid))
+    r_iq = chain(cir, 0, np.random.default_rng(0),
+                 adversary=Adversary(adv, chain.ofdm.modulate(grid, chain.slots)))
     np.testing.assert_allclose(r_grid.toa_s, r_iq.toa_s, atol=0.05 / chain.ofdm.sample_rate_hz)
     assert abs(r_grid.toa_s[1] - adv.delays[0, 0, 0]) * chain.ofdm.sample_rate_hz < TOA_SAMPLES
 
@@ -172,9 +174,6 @@ def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
     grid (frequency) or OFDM-modulated into the IQ (time, OFDM front end), gives the same
     estimates up to the channel's own time/frequency difference (FRONT_END_SAMPLES), here at
     0 dB per RE and antenna where independent noise would move the ToAs by ~0.05 sample."""
-    from veriloc_rt.studies.diagnostics import shared_noise_chain
-
-    cls = shared_noise_chain()
     ue = np.array([37.0, -21.0, 1.5])
     nv = thermal_noise_variance(rate, ChannelConfig().ue_noise_figure_db)
     probe = make_chain("frequency", rate)
@@ -182,10 +181,12 @@ def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
     cir = exact_cir(ue, amp=np.sqrt(g2), doppler=(80.0, -40.0, 10.0))
     out = {}
     for domain in ("frequency", "time"):
-        chain = cls(NRConfig(sample_rate_hz=rate, slots_per_frame=4), SecurityConfig(tag_scheme="none"),
-                    ChannelConfig(domain=domain, time_front_end="ofdm"), ReceiverConfig(),
-                    ArrayConfig(), FC, simulated_keys((0, 1, 2), np.random.default_rng(0)))
-        chain.dl_rng = np.random.default_rng(11)
+        nr = NRConfig(sample_rate_hz=rate, slots_per_frame=4)
+        grid_noise = GridNoise(OFDM(nr), range(4), np.random.default_rng(11))
+        chain = PositioningChain(nr, SecurityConfig(tag_scheme="none"),
+                                 ChannelConfig(domain=domain, time_front_end="ofdm"), ReceiverConfig(),
+                                 ArrayConfig(), FC, simulated_keys((0, 1, 2), np.random.default_rng(0)),
+                                 noise=grid_noise, uplink_noise=GridNoise(grid_noise.ofdm, range(4)))
         out[domain] = chain(cir, 0, np.random.default_rng(12))
         fs = chain.ofdm.sample_rate_hz
     f, t = out["frequency"], out["time"]
@@ -198,12 +199,12 @@ def test_shared_noise_reaches_time_and_frequency_paths_alike(rate):
     np.testing.assert_array_less(np.abs(f.uplink.toa_s - t.uplink.toa_s) * fs, FRONT_END_SAMPLES)
 
 
-class _SeenChain(PositioningChain):
+class SeenNoise(WhiteNoise):
     """Records the noiseless received grid at the chain's one noise entry point."""
 
-    def _add_noise(self, x, rng):
+    def __call__(self, x, variance, rng):
         self.seen = x
-        return super()._add_noise(x, rng)
+        return super().__call__(x, variance, rng)
 
 
 @pytest.mark.parametrize("tags,factor", [("hmac", 3.0), ("none", 6.0)])
@@ -216,18 +217,20 @@ def test_occupied_prs_power_raises_the_received_re_energy_by_the_muted_share(tag
     energy = {}
     for mode in ("carrier", "occupied"):
         keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
-        ch = _SeenChain(NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme=tags),
-                        ChannelConfig(prs_power=mode), ReceiverConfig(), ArrayConfig(), FC, keys)
+        seen = SeenNoise()
+        ch = PositioningChain(NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme=tags),
+                              ChannelConfig(prs_power=mode), ReceiverConfig(), ArrayConfig(), FC, keys,
+                              noise=seen)
         ch(cir, 0, np.random.default_rng(1))
-        energy[mode] = float(np.sum(np.abs(ch.seen) ** 2))
+        energy[mode] = float(np.sum(np.abs(seen.seen) ** 2))
     assert energy["occupied"] / energy["carrier"] == pytest.approx(factor, rel=1e-9)
 
 
-class _NoiseChain(PositioningChain):
+class RecordingNoise(WhiteNoise):
     """Records the noise the chain adds (grid or IQ)."""
 
-    def _add_noise(self, x, rng):
-        y = super()._add_noise(x, rng)
+    def __call__(self, x, variance, rng):
+        y = super().__call__(x, variance, rng)
         self.noise = y - x
         return y
 
@@ -241,31 +244,32 @@ def test_noise_density_and_the_channel_bandwidth_convention(domain, rate, bandwi
     Tolerance 2 %: >= 1.7e5 complex samples, std of the variance estimate < 0.3 %."""
     cir = exact_cir(np.array([10.0, 20.0, 1.5]))
     keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
-    ch = _NoiseChain(NRConfig(sample_rate_hz=rate, slots_per_frame=4), SecurityConfig(tag_scheme="none"),
-                     ChannelConfig(domain=domain, noise_bandwidth_hz=bandwidth),
-                     ReceiverConfig(), ArrayConfig(), FC, keys)
+    rec = RecordingNoise()
+    ch = PositioningChain(NRConfig(sample_rate_hz=rate, slots_per_frame=4), SecurityConfig(tag_scheme="none"),
+                          ChannelConfig(domain=domain, noise_bandwidth_hz=bandwidth),
+                          ReceiverConfig(), ArrayConfig(), FC, keys, noise=rec)
     ch(cir, 0, np.random.default_rng(5))
     scale = 1.0 if bandwidth is None else bandwidth / 122.88e6
     expected = 1.380649e-23 * 290.0 * 10 ** 0.9 * rate * scale
-    assert np.mean(np.abs(ch.noise) ** 2) == pytest.approx(expected, rel=0.02)
+    assert np.mean(np.abs(rec.noise) ** 2) == pytest.approx(expected, rel=0.02)
     # the BSs' uplink receivers (F = 5 dB) follow the same convention
-    assert ch.uplink.noise_var == pytest.approx(1.380649e-23 * 290.0 * 10 ** 0.5 * rate * scale, rel=1e-6)
+    assert ch.uplink.positioner.noise_var == pytest.approx(1.380649e-23 * 290.0 * 10 ** 0.5 * rate * scale, rel=1e-6)
 
 
-class _CountingChain(PositioningChain):
+class CountingNoise(WhiteNoise):
     """Counts the draws of downlink noise."""
 
     draws = 0
 
-    def _add_noise(self, x, rng):
+    def __call__(self, x, variance, rng):
         self.draws += 1
-        return super()._add_noise(x, rng)
+        return super().__call__(x, variance, rng)
 
 
 @pytest.mark.parametrize("domain", ["frequency", "time"])
 def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(domain):
     """A run evaluates a point's scenarios together: the attack call reuses the benign call's
-    serving-BS signal plus noise and uplink fix (PositioningChain._benign). Second method: a fresh
+    serving-BS signal plus noise and uplink fix (phy.chain.downlink.KeptDraw). Second method: a fresh
     chain computing the attack call alone, from the same generator state. Exact equality (the
     same operations on the same numbers), the caller's generator left in the same state, and
     one noise draw for the two calls."""
@@ -279,13 +283,14 @@ def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(do
     keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
     args = (NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme="hmac"),
             ChannelConfig(domain=domain), ReceiverConfig(), ArrayConfig(), FC, keys)
-    kept, fresh = _CountingChain(*args), _CountingChain(*args)
-    spoof = 1e-3 * kept.frame_signals((0, 1, 2), 0)["replicas"][1]   # a weak replay of BS 1
+    n_kept, n_fresh = CountingNoise(), CountingNoise()
+    kept, fresh = PositioningChain(*args, noise=n_kept), PositioningChain(*args, noise=n_fresh)
+    spoof = Adversary(adv, 1e-3 * kept.frame_signals((0, 1, 2), 0).replicas[1])   # a weak replay of BS 1
     benign = kept(cir, 0, np.random.default_rng(7))
     rng_k, rng_f = np.random.default_rng(7), np.random.default_rng(7)
-    a = kept(cir, 0, rng_k, adv_ue=adv, adversary_signal=spoof)
-    b = fresh(cir, 0, rng_f, adv_ue=adv, adversary_signal=spoof)
-    assert kept.draws == 1 and fresh.draws == 1
+    a = kept(cir, 0, rng_k, adversary=spoof)
+    b = fresh(cir, 0, rng_f, adversary=spoof)
+    assert n_kept.draws == 1 and n_fresh.draws == 1
     assert rng_k.bit_generator.state == rng_f.bit_generator.state
     for f in ("toa_s", "peak_snr_db", "doppler_hz", "tags_valid", "detected"):
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
@@ -293,12 +298,12 @@ def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(do
     assert a.uplink is benign.uplink
     assert not np.array_equal(a.peak_snr_db, benign.peak_snr_db)   # the attack did arrive
     # another generator state is another noise draw
-    kept(cir, 0, np.random.default_rng(8), adv_ue=adv, adversary_signal=spoof)
-    assert kept.draws == 2
+    kept(cir, 0, np.random.default_rng(8), adversary=spoof)
+    assert n_kept.draws == 2
 
 
 def test_fix_only_chain_gives_the_full_chains_fix_without_aoa_or_tags():
-    """fix_only (a run's encrypted-PRS chain, whose outcomes alone are used): the same timing and
+    """The FIX_ONLY plan (a run's encrypted-PRS chain, whose outcomes alone are used): the same timing and
     DL fix as the full chain on the same noise (second method: the full call; exact), no AoA and
     no tag check, while the BSs still transmit their tags."""
     ue = np.array([10.0, 20.0, 1.5])
@@ -306,7 +311,7 @@ def test_fix_only_chain_gives_the_full_chains_fix_without_aoa_or_tags():
     args = (NRConfig(slots_per_frame=2), SecurityConfig(tag_scheme="hmac", encrypted=(True,) * 3),
             ChannelConfig(), ReceiverConfig(uplink=False), ArrayConfig(), FC, keys)
     full = PositioningChain(*args)(exact_cir(ue), 0, np.random.default_rng(3))
-    only = PositioningChain(*args, fix_only=True)(exact_cir(ue), 0, np.random.default_rng(3))
+    only = PositioningChain(*args)(exact_cir(ue), 0, np.random.default_rng(3), plan=FIX_ONLY)
     np.testing.assert_array_equal(only.toa_s, full.toa_s)
     np.testing.assert_array_equal(only.position.position, full.position.position)
     assert full.tags_checked and full.tags_valid.all() and all(a is not None for a in full.aoa)

@@ -6,7 +6,7 @@ import json
 import pytest
 
 from veriloc_rt.cli import main
-from veriloc_rt.phy.receiver.chain import STAGES
+from veriloc_rt.phy.chain import STAGES
 
 from .test_cli import ROOT
 

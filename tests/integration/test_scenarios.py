@@ -166,7 +166,7 @@ def test_fbs_bias_mode_outcomes_follow_the_geometry():
 
 def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
     """run.digsig 'separate' decodes the DS-tagged grid's tags on the HMAC-tagged chain's timing
-    (``PositioningChain(estimates=...)``). Second method: the DS chain's own full call, its own
+    (``ChainPlan.tags_on(...)``). Second method: the DS chain's own full call, its own
     ToA on its own grid. The two grids share the PRS REs (same noise stream; the tags sit on
     other REs) up to the relay's gain control, which sees the tags: every verdict must agree."""
     from veriloc_rt.sim.engine import compute_propagation
@@ -184,11 +184,11 @@ def test_ds_chain_on_the_hmac_timing_matches_its_own_call(tmp_path):
     for scenario in cfg.run.scenarios:
         for i in range(geo.num_points):
             runner.clear_cache()
-            std = runner.chain_result("standard", runner.chains["standard"], scenario, 0, i)
+            std = runner.chain_result("standard", scenario, i)
             runner.clear_cache()
-            reuse = runner.chain_result("ds", runner.ds_chain, scenario, 0, i, std)
+            reuse = runner.chain_result("ds", scenario, i, std)
             runner.clear_cache()
-            own = runner.chain_result("ds", runner.ds_chain, scenario, 0, i)
+            own = runner.chain_result("ds", scenario, i)
             np.testing.assert_array_equal(reuse.tags_valid, own.tags_valid)
             np.testing.assert_array_equal(reuse.detected, own.detected)
             seen.extend(own.tags_valid)

@@ -33,7 +33,7 @@ from veriloc_rt.config import ArrayConfig
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.propagation.cir import CIR, array_response, ula_element_positions
-from veriloc_rt.phy.receiver.chain import PositioningChain
+from veriloc_rt.phy.chain import PositioningChain
 from veriloc_rt.config.security import SecurityConfig
 
 FC = 3.5e9

@@ -33,7 +33,7 @@ from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.propagation.cir import (INTERACTION_DIFFRACTION, INTERACTION_SPECULAR,
                                         ula_element_positions)
 from veriloc_rt.propagation.raytrace import LinkTracer, build_cir, trace_links
-from veriloc_rt.phy.receiver.chain import PositioningChain
+from veriloc_rt.phy.chain import PositioningChain
 from veriloc_rt.world.scene.canyon import UrbanCanyon
 from veriloc_rt.world.scene.export import write_ply
 from veriloc_rt.config.security import SecurityConfig

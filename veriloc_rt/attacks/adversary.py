@@ -37,7 +37,7 @@ from ..phy.channel import (Links, add_noise, apply_frequency, dbm_to_watt, equal
                            receiver_noise_variance)
 from ..config import Config
 from ..propagation.cir import CIR
-from ..phy.receiver.chain import PositioningChain
+from ..phy.chain import PositioningChain
 from .fbs import FalseBaseStation, spoofer_replicas
 from .jamming import Jammer
 from .meaconing import Meaconer
@@ -121,7 +121,7 @@ class AdversarySignal:
 
     def _meaconing(self, point, frame, bs_ue, bs_adv, rng) -> np.ndarray:
         bs_ids = tuple(int(b) for b in bs_ue.tx_index[point])
-        grids = self.chain.frame_signals(bs_ids, frame)["grids"]
+        grids = self.chain.frame_signals(bs_ids, frame).grids
         ch = self.cfg.channel
         powers = equal_arrival_powers(Links.from_cir(bs_ue, point).power_gain(),
                                       float(dbm_to_watt(ch.bs_max_power_dbm)), ch.power_control)

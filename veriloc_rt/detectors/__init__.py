@@ -1,13 +1,15 @@
 """The five per-point detectors: HMAC and DS tags, ABSA, DL-UL handshake, Kalman tracking.
 
 Each is a small stage configured once by a frozen config and called per trajectory point;
-the stateful one (:class:`KalmanTracker`) has ``reset()``.
+the stateful one (:class:`KalmanTracker`) has ``reset()``. :func:`point_verdicts` runs the
+four stateless ones on a chain result.
 """
 
 from ..config.detectors import ABSAConfig
 from .absa import ABSADetector, ABSAVerdict, angle_difference, geometric_azimuth, wrap_angle
 from ..config.detectors import HandshakeConfig
 from .handshake import HandshakeDetector, HandshakeVerdict
+from .point import PointDetectors, point_verdicts
 from .tags import TagDetector, TagVerdict
 from ..config.detectors import TagDetectorConfig
 from .tracking import KalmanTracker, TrackVerdict, cv_transition, dwna_process_noise, nis_gate
@@ -15,5 +17,5 @@ from ..config.detectors import TrackingConfig
 
 __all__ = ["ABSAConfig", "ABSADetector", "ABSAVerdict", "angle_difference", "geometric_azimuth",
            "wrap_angle", "HandshakeConfig", "HandshakeDetector", "HandshakeVerdict", "TagDetector",
-           "TagDetectorConfig", "TagVerdict", "KalmanTracker", "TrackingConfig", "TrackVerdict",
+           "TagDetectorConfig", "TagVerdict", "PointDetectors", "point_verdicts", "KalmanTracker", "TrackingConfig", "TrackVerdict",
            "cv_transition", "dwna_process_noise", "nis_gate"]

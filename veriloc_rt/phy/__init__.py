@@ -2,6 +2,7 @@
 
 :mod:`.nr` (PRS, resource grid, OFDM, uplink SRS), :mod:`.security` (PRS encryption, tags,
 keys, LDPC), :mod:`.transmitter` (the serving BSs' PRS grids), :mod:`.channel` (CIRs applied
-to waveforms, powers, noise) and :mod:`.receiver` (sync, ToA/RSTD, multilateration, AoA, tag
-checks, uplink; :class:`~.receiver.chain.PositioningChain` runs them per point).
+to waveforms, powers, noise), :mod:`.noise` (noise sources), :mod:`.receiver` (sync, ToA/RSTD,
+multilateration, AoA, tag checks, uplink) and :mod:`.chain` (the per-point chain as stage
+blocks; :class:`~.chain.PositioningChain` runs them per point).
 """

@@ -11,7 +11,7 @@ another config is never read), then records, each a big-endian 8-byte length, th
 SHA-256 of the payload and the payload. A torn or damaged record ends the file: it and
 everything after it are dropped (a kill mid-write tears the last record only).
 
-A payload holds one ``{cache key: ChainResult}`` dict without ``pickle`` (loading a pickle runs
+A payload holds one ``{ChainKey: ChainResult}`` dict without ``pickle`` (loading a pickle runs
 code): a JSON tree of the structure, where a dataclass is named by its class, which must be a
 dataclass of this package, followed by the arrays' raw bytes (dtype, shape and place in the
 tree). Floats go through their exact hex text and arrays as raw bytes, so the results read back
@@ -38,7 +38,9 @@ log = logging.getLogger(__name__)
 
 __all__ = ["ChainStore", "encode", "decode", "config_digest"]
 
-MAGIC = b"VLCHAIN1"
+#: the format: 2 since the cache keys are :class:`~veriloc_rt.sim.runner.ChainKey` and the
+#: results :class:`veriloc_rt.phy.chain.ChainResult` (a store of format 1 starts anew)
+MAGIC = b"VLCHAIN2"
 _HEAD = struct.Struct(">Q")
 _DIGEST = 32
 #: the package whose dataclasses a payload may name

@@ -226,7 +226,7 @@ def _restore_chains(runner: ScenarioRunner, store: ChainStore, saved: dict) -> N
     kept = 0
     for results in store.loaded:
         need = {ck: r for ck, r in results.items()
-                if len(ck) == 2 or ck[2] >= len(saved.get(ck[1], ()))}
+                if ck.scenario is None or ck.point >= len(saved.get(ck.scenario, ()))}
         runner.store_chains(need)
         kept += len(need)
     store.loaded.clear()

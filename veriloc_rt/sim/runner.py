@@ -17,11 +17,12 @@ Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted`
    * HMAC: :class:`TagDetector` on the chain's tag checks (``security.tag_scheme`` should be
      'hmac'); DigSig: the same rule on a second, DS-tagged chain call with the same noise and
      adversary draws (``run.digsig='separate'``; it keeps the first call's timing and decodes
-     its own tags: ``PositioningChain(estimates=...)``), or on the HMAC run's checks ('shared');
+     its own tags: ``ChainPlan.tags_on(...)``), or on the HMAC run's checks ('shared');
    * ABSA: the AoA per BS, resolved against and compared with the azimuth from the *last
      validated position* (the Kalman tracker's position after its last accepted fix; before the
      first one, the current DL fix);
-   * Handshake: DL fix against UL fix; Tracking: the Kalman tracker on the DL fix.
+   * Handshake: DL fix against UL fix (these four: :func:`~veriloc_rt.detectors.point.point_verdicts`);
+     Tracking: the Kalman tracker on the DL fix.
 
 4. outcome: ``success`` (fix ok and horizontal error <= ``run.success_threshold_m``),
    ``large_error`` (fix ok, error above), ``service_failure`` (no fix: fewer than 3 BSs heard or
@@ -37,19 +38,20 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..config import Config
-from ..detectors import ABSADetector, HandshakeDetector, KalmanTracker, TagDetector
+from ..detectors import KalmanTracker, PointDetectors, point_verdicts
 from ..detectors.outcomes import PointRow, outcome_of
-from ..phy.receiver.chain import STAGES, ChainResult, PositioningChain
+from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..rng import stream
 from ..attacks.adversary import AdversarySignal
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FRAME_OFFSETS", "ScenarioRunner", "frame_offset"]
+__all__ = ["ChainKey", "ChainRole", "FRAME_OFFSETS", "ScenarioRunner", "frame_offset"]
 
 
 #: frame counters a run may use: the 32-bit counter of the AES-CTR counter block and the tags
@@ -75,6 +77,35 @@ def frame_offset(cfg: Config) -> int:
     return int(stream(cfg.seed, "frame-offset").integers(0, FRAME_OFFSETS))
 
 
+@dataclass(frozen=True)
+class ChainKey:
+    """A chain result of a run: the chain (:attr:`ChainRole.name`), the point and, for a point
+    in an attack scenario's window, the scenario (None: benign, the same in every scenario:
+    common random numbers)."""
+
+    chain: str
+    point: int
+    scenario: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class ChainRole:
+    """One of a run's chains.
+
+    name : 'standard' (HMAC tags, AoA, UL fix: every detector), 'ds' (the DS-tagged grid's
+        tags on the standard call's timing) or 'encrypted' (encrypted PRS, outcomes only)
+    chain : PositioningChain; prs_mode : int, 0 standard PRS, 1 encrypted (names the noise and
+        adversary streams); plan : ChainPlan of its calls (the DS chain's is made per call, on
+        the standard result); adversary : AdversarySignal for this chain's frames
+    """
+
+    name: str
+    chain: PositioningChain
+    prs_mode: int
+    plan: ChainPlan
+    adversary: AdversarySignal
+
+
 class ScenarioRunner:
     """Chains, adversary and detectors of one run.
 
@@ -86,33 +117,34 @@ class ScenarioRunner:
         self.window = cfg.run.attack_points(geometry.num_points)
         #: frame counter of point 0 (point i is frame frame0 + i): see :func:`frame_offset`
         self.frame0 = frame_offset(cfg)
-        nbs = cfg.nr.num_bs
-        mk = dict(nr=cfg.nr, channel=cfg.channel, ue_array=cfg.propagation.ue_array,
-                  carrier_frequency_hz=cfg.propagation.carrier_frequency_hz, keys=keys)
-        sec = cfg.security
-        self.chains = {"standard": PositioningChain(security=sec, receiver=cfg.receiver, **mk)}
-        if cfg.run.evaluate_encrypted:  # outcomes only: no uplink, AoA or tag check needed
-            enc = dataclasses.replace(sec, encrypted=(True,) * nbs)
-            rx = dataclasses.replace(cfg.receiver, uplink=False)
-            self.chains["encrypted"] = PositioningChain(security=enc, receiver=rx, fix_only=True, **mk)
-        self.ds_chain = None
-        if cfg.run.digsig == "separate" and sec.tag_scheme != "ds":
-            ds = dataclasses.replace(sec, tag_scheme="ds")
-            rx = dataclasses.replace(cfg.receiver, uplink=False)
-            self.ds_chain = PositioningChain(security=ds, receiver=rx, **mk)
-        self.adversary = {m: AdversarySignal(cfg, c) for m, c in self.chains.items()}
-        if self.ds_chain is not None:
-            self.adversary["ds"] = AdversarySignal(cfg, self.ds_chain)
-        d = cfg.detectors
-        self.hmac, self.digsig = TagDetector(d.hmac), TagDetector(d.digsig)
-        self.absa, self.handshake = ABSADetector(d.absa), HandshakeDetector(d.handshake)
-        self.tracker = KalmanTracker(d.tracking)
-        #: chain results by cache key: (key, i) benign, shared by the scenarios (common random
-        #: numbers); (key, scenario, i) attack points computed by a worker, used once
-        self._benign: dict[tuple, ChainResult] = {}
+        #: the run's chains by name, in the order a point computes them ('standard' first: the
+        #: DS chain reuses its timing)
+        self.roles: dict[str, ChainRole] = {}
+        for name, mode, plan, sec, rx in self._chain_configs(cfg):
+            chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
+                                     cfg.propagation.carrier_frequency_hz, keys)
+            self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain))
+        self.detectors = PointDetectors.from_config(cfg.detectors)
+        self.tracker = KalmanTracker(cfg.detectors.tracking)
+        #: chain results by key: benign ones shared by the scenarios (common random numbers);
+        #: attack points computed by a worker, used once
+        self._results: dict[ChainKey, ChainResult] = {}
         #: seconds: adversary signals, chain calls (total and by stage, :data:`STAGES`), detectors
         self.timing = {"adversary": 0.0, "chain": 0.0, **dict.fromkeys(STAGES, 0.0), "detectors": 0.0}
         self._last_valid: np.ndarray | None = None
+
+    @staticmethod
+    def _chain_configs(cfg: Config) -> list[tuple]:
+        """(name, PRS mode, plan, security, receiver) of each chain the run needs."""
+        sec = cfg.security
+        out = [("standard", 0, FULL, sec, cfg.receiver)]
+        no_uplink = dataclasses.replace(cfg.receiver, uplink=False)
+        if cfg.run.digsig == "separate" and sec.tag_scheme != "ds":
+            out.append(("ds", 0, FULL, dataclasses.replace(sec, tag_scheme="ds"), no_uplink))
+        if cfg.run.evaluate_encrypted:  # outcomes only: no uplink, AoA or tag check needed
+            enc = dataclasses.replace(sec, encrypted=(True,) * cfg.nr.num_bs)
+            out.append(("encrypted", 1, FIX_ONLY, enc, no_uplink))
+        return out
 
     # -- state -------------------------------------------------------------------------------
     def reset(self) -> None:
@@ -141,38 +173,32 @@ class ScenarioRunner:
         t = self.geo.ue.t
         return float(t[i] - t[prev]) if t[i] > t[prev] else None
 
-    # -- per point ---------------------------------------------------------------------------
     # -- chain results, local or from worker processes --------------------------------------
-    def _keys(self) -> list[tuple[str, PositioningChain, int]]:
-        out = [("standard", self.chains["standard"], 0)]
-        if self.ds_chain is not None:
-            out.append(("ds", self.ds_chain, 0))
-        if "encrypted" in self.chains:
-            out.append(("encrypted", self.chains["encrypted"], 1))
-        return out
+    def _attack(self, scenario: str, i: int) -> bool:
+        return scenario != "none" and bool(self.window[i])
 
-    def _ck(self, key: str, scenario: str, i: int) -> tuple:
-        attack = scenario != "none" and bool(self.window[i])
-        return (key, scenario, i) if attack else (key, i)
+    def key(self, chain: str, scenario: str, i: int) -> ChainKey:
+        """The cache key of chain ``chain``'s result at point ``i`` of ``scenario``."""
+        return ChainKey(chain, i, scenario if self._attack(scenario, i) else None)
 
     def needs_chains(self, scenario: str, i: int) -> bool:
         """Whether point ``i`` of ``scenario`` still needs chain calls (not cached)."""
-        return any(self._ck(k, scenario, i) not in self._benign for k, _, _ in self._keys())
+        return any(self.key(k, scenario, i) not in self._results for k in self.roles)
 
-    def compute_chains(self, scenario: str, i: int) -> dict:
+    def compute_chains(self, scenario: str, i: int) -> dict[ChainKey, ChainResult]:
         """Every chain result point ``i`` of ``scenario`` needs, by cache key (for workers);
         in the attack window also those of the run's later attack scenarios, computed here
         together: they share the serving BSs' signal, noise and uplink, which each chain keeps
-        from one call to the next (:meth:`PositioningChain._benign`). The engine holds them
-        until their scenario comes."""
+        from one call to the next (:class:`~veriloc_rt.phy.chain.downlink.KeptDraw`). The
+        engine holds them until their scenario comes."""
         out: dict = {}
         for sc in self._scenarios_at(scenario, i):
-            for k, c, m in self._keys():   # 'standard' first: the DS chain reuses its timing
-                ck = self._ck(k, sc, i)
-                if ck in out or (sc != scenario and ck in self._benign):
+            for k in self.roles:   # 'standard' first: the DS chain reuses its timing
+                ck = self.key(k, sc, i)
+                if ck in out or (sc != scenario and ck in self._results):
                     continue
-                std = out.get(self._ck("standard", sc, i)) if k == "ds" else None
-                out[ck] = self.chain_result(k, c, sc, m, i, std)
+                std = out.get(self.key("standard", sc, i)) if k == "ds" else None
+                out[ck] = self.chain_result(k, sc, i, std)
         return out
 
     def _scenarios_at(self, scenario: str, i: int) -> list[str]:
@@ -185,7 +211,7 @@ class ScenarioRunner:
 
     def chain_work(self, scenario: str, i: int) -> int:
         """How many scenarios' chains point ``i`` of ``scenario`` still computes (for progress)."""
-        return sum(any(self._ck(k, sc, i) not in self._benign for k, _, _ in self._keys())
+        return sum(any(self.key(k, sc, i) not in self._results for k in self.roles)
                    for sc in self._scenarios_at(scenario, i))
 
     def worker_chains(self, scenario: str, i: int) -> tuple[int, dict, dict]:
@@ -199,69 +225,61 @@ class ScenarioRunner:
 
     def clear_cache(self) -> None:
         """Forget every cached chain result."""
-        self._benign.clear()
+        self._results.clear()
 
-    def store_chains(self, results: dict) -> None:
+    def store_chains(self, results: dict[ChainKey, ChainResult]) -> None:
         """Results from :meth:`compute_chains` (run elsewhere) for the next :meth:`point` calls."""
-        self._benign.update(results)
+        self._results.update(results)
 
-    def chain_result(self, key: str, chain: PositioningChain, scenario: str, mode: int, i: int,
-                     estimates: ChainResult | None = None) -> ChainResult:
-        """The result of ``chain`` (cache key ``key``: 'standard', 'ds', 'encrypted') at point
-        ``i`` of ``scenario`` with PRS mode ``mode`` (0 standard, 1 encrypted); benign results
-        come from and go to the cache (:meth:`clear_cache`), attack results are used once.
-        ``estimates``: the DS chain reuses the standard call's timing."""
-        attack = scenario != "none" and bool(self.window[i])
-        ck = self._ck(key, scenario, i)
-        if ck in self._benign:
+    def chain_result(self, chain: str, scenario: str, i: int,
+                     timing_from: ChainResult | None = None) -> ChainResult:
+        """The result of the chain named ``chain`` (:attr:`roles`) at point ``i`` of
+        ``scenario``; benign results come from and go to the cache (:meth:`clear_cache`), attack
+        results are used once. ``timing_from``: the DS chain decodes its tags on the standard
+        call's timing (``ChainPlan.tags_on``)."""
+        role = self.roles[chain]
+        attack = self._attack(scenario, i)
+        ck = self.key(chain, scenario, i)
+        if ck in self._results:
             # benign results are shared by every scenario; attack results come from workers
-            return self._benign[ck] if not attack else self._benign.pop(ck)
+            return self._results[ck] if not attack else self._results.pop(ck)
         p = self.prop
-        sig = None
+        adversary = None
         if attack:
             t = time.perf_counter()
-            sig = self.adversary[key](scenario, i, self.frame0 + i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
-                                      self.geo.ue.pos[i], stream(self.cfg.seed, "adversary",
-                                                                 _SCEN[scenario], mode, i),
-                                      adv_ue=p.adv_ue)
+            rng = stream(self.cfg.seed, "adversary", _SCEN[scenario], role.prs_mode, i)
+            sig = role.adversary(scenario, i, self.frame0 + i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
+                                 self.geo.ue.pos[i], rng, adv_ue=p.adv_ue)
+            adversary = Adversary(p.adv_ue, sig)
             self.timing["adversary"] += time.perf_counter() - t
+        plan = role.plan if timing_from is None else ChainPlan.tags_on(timing_from)
         t = time.perf_counter()
-        before = dict(chain.stage_s)
-        res = chain(p.bs_ue, i, stream(self.cfg.seed, "noise", mode, i), frame=self.frame0 + i,
-                    adv_ue=p.adv_ue if attack else None, adversary_signal=sig, estimates=estimates)
+        before = dict(role.chain.stage_s)
+        res = role.chain(p.bs_ue, i, stream(self.cfg.seed, "noise", role.prs_mode, i),
+                         frame=self.frame0 + i, adversary=adversary, plan=plan)
         self.timing["chain"] += time.perf_counter() - t
         for k in STAGES:
-            self.timing[k] += chain.stage_s[k] - before[k]
+            self.timing[k] += role.chain.stage_s[k] - before[k]
         if not attack:
-            self._benign[ck] = res
+            self._results[ck] = res
         return res
 
+    # -- per point ---------------------------------------------------------------------------
     def point(self, scenario: str, i: int, prev: int | None) -> PointRow:
         """Evaluate point ``i`` of ``scenario`` (``prev``: the previous evaluated point)."""
-        cfg = self.cfg
         true_xy = self.geo.ue.pos[i, :2]
-        res = self.chain_result("standard", self.chains["standard"], scenario, 0, i)
+        res = self.chain_result("standard", scenario, i)
         est, err, out = self._fix(res, true_xy)
-        ds = self.chain_result("ds", self.ds_chain, scenario, 0, i, res) if self.ds_chain is not None else res
+        ds = self.chain_result("ds", scenario, i, res) if "ds" in self.roles else res
         t = time.perf_counter()
-        v = {"HMAC": self.hmac(res.tags_valid, res.detected).valid,
-             "DigSig": self.digsig(ds.tags_valid, ds.detected).valid}
-        bs_pos = self.prop.bs_ue.tx_pos[i]
         ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
-        ref_az = self.absa.reference_azimuth(bs_pos, ref)
-        # no AoA: NaN; no reference: unresolvable, and ABSA does not check that BS anyway
-        az = np.array([float(a.resolve(r)[0]) if (a is not None and np.isfinite(r)) else np.nan
-                       for a, r in zip(res.aoa, ref_az)])
-        v["ABSA"] = self.absa(az, bs_pos, reference_position=ref).valid
-        ul = res.uplink.position if res.uplink is not None else None
-        v["Handshake"] = self.handshake(res.position.position if res.position.ok else None,
-                                        ul.position if (ul is not None and ul.ok) else None).valid
+        v = point_verdicts(self.detectors, res, self.prop.bs_ue.tx_pos[i], ref, ds)
         v["Tracking"] = self._track(est, self._dt(prev, i))
         self.timing["detectors"] += time.perf_counter() - t
-        row = PointRow(i, float(self.geo.ue.t[i]), scenario != "none" and bool(self.window[i]),
+        row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
                        v, true_xy.copy(), est, err, out)
-        if "encrypted" in self.chains:
-            r2 = self.chain_result("encrypted", self.chains["encrypted"], scenario, 1, i)
+        if "encrypted" in self.roles:
+            r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
         return row
 

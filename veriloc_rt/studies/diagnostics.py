@@ -13,10 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..phy.channel import add_noise
 from ..config import Config
 from ..constants import SPEED_OF_LIGHT
-from ..phy.nr.ofdm import SYMBOLS_PER_SLOT
+from ..detectors import PointDetectors, point_verdicts
+from ..detectors.absa import geometric_azimuth
+from ..phy.chain import PositioningChain
+from ..phy.nr.ofdm import OFDM
+from ..phy.noise import GridNoise
 from ..rng import stream
 
 __all__ = ["BenignRun", "benign_chain", "finite_percentiles", "wrap_deg"]
@@ -85,51 +88,6 @@ def wrap_deg(a) -> np.ndarray:
     return np.abs((np.rad2deg(a) + 180.0) % 360.0 - 180.0)
 
 
-def _grid_noise(x: np.ndarray, variance: float, rng: np.random.Generator, ofdm, slots) -> np.ndarray:
-    """x plus noise drawn as a per-RE grid, slot-major (the first S slots' draws do not depend on
-    how many follow): added to a grid [A, S, 14, K], or OFDM-modulated (orthonormal: each FFT
-    window gets the grid back exactly; CP and tail get no noise) into IQ [A, N]."""
-    shape = (x.shape[0], len(slots), SYMBOLS_PER_SLOT, ofdm.num_subcarriers)
-    g = add_noise(np.zeros(shape, dtype=np.complex128), variance, rng, major_axis=1)   # [A, S, 14, K]
-    if x.ndim == 4:
-        return x + g
-    iq = ofdm.modulate(g, slots)
-    out = np.array(x, dtype=np.complex128)
-    out[:, :iq.shape[-1]] += iq
-    return out
-
-
-def shared_noise_chain():
-    """A :class:`PositioningChain` whose downlink (from ``dl_rng``) and uplink (from the point's
-    generator) noise is drawn by :func:`_grid_noise`: every chain with the same bandwidth sees
-    the same noise on the same REs, whatever its sample rate, domain or number of slots (its
-    first slots). Time domain: for the ``ofdm`` front end only."""
-    from ..phy.receiver.chain import PositioningChain
-    from ..phy.receiver.uplink import UplinkPositioner
-
-    class SharedNoiseUplink(UplinkPositioner):
-        def _add_noise(self, y, rng):
-            if self.noise_var <= 0:
-                return super()._add_noise(y, rng)
-            return _grid_noise(y, self.noise_var, rng, self.ofdm, self.slots)
-
-    class SharedNoiseChain(PositioningChain):
-        dl_rng: np.random.Generator | None = None
-        keep_benign = False   # the noise comes from dl_rng, not from the key's generator
-
-        def __init__(self, *args, **kwargs):
-            super().__init__(*args, **kwargs)
-            if self.uplink is not None:
-                self.uplink = SharedNoiseUplink(self.nr, self.channel, self.receiver)
-
-        def _add_noise(self, x, rng):
-            if self.dl_rng is None or self.noise_var <= 0:
-                return super()._add_noise(x, rng)
-            return _grid_noise(x, self.noise_var, self.dl_rng, self.ofdm, self.slots)
-
-    return SharedNoiseChain
-
-
 def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise",
                  progress=None, shared_noise: bool = False) -> BenignRun:
     """Run ``cfg``'s standard chain on ``bs_ue`` at ``points`` without an adversary.
@@ -139,25 +97,25 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
     :param keys: by BS id (:func:`veriloc_rt.sim.run_folder.run_keys`)
     :param noise: name of the noise stream (another name: other noise draws)
     :param progress: called as ``progress(done, total)``
-    :param shared_noise: the noise is a per-RE grid drawn slot-major (:func:`_grid_noise`;
-        downlink from its own stream ``noise + "/dl"``, uplink from the point's), so that chains
+    :param shared_noise: the noise is a per-RE grid drawn slot-major
+        (:class:`~veriloc_rt.phy.noise.GridNoise`; downlink from its own stream
+        ``noise + "/dl"`` supplied per point, uplink from the point's), so that chains
         of different sample rate, domain (time domain: ``channel.time_front_end`` 'ofdm' only)
         and number of slots see the same noise on the same REs. Off: the run's own draws, as in
         ``veriloc-rt run``.
     """
-    from ..detectors import ABSADetector, HandshakeDetector, TagDetector
-    from ..detectors.absa import geometric_azimuth
-    from ..phy.receiver.chain import PositioningChain
-
     points = np.asarray(points, dtype=np.int64)
     if shared_noise and cfg.channel.domain == "time" and cfg.channel.time_front_end != "ofdm":
         raise ValueError("shared noise reaches only the FFT windows: the time domain needs "
                          "channel.time_front_end 'ofdm'")
-    cls = shared_noise_chain() if shared_noise else PositioningChain
-    chain = cls(cfg.nr, cfg.security, cfg.channel, cfg.receiver,
-                cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys)
-    d = cfg.detectors
-    hmac, absa, hs = TagDetector(d.hmac), ABSADetector(d.absa), HandshakeDetector(d.handshake)
+    dl_noise = ul_noise = None
+    if shared_noise:
+        ofdm, slots = OFDM(cfg.nr), range(cfg.nr.slots_per_frame)
+        dl_noise, ul_noise = GridNoise(ofdm, slots), GridNoise(ofdm, slots)
+    chain = PositioningChain(cfg.nr, cfg.security, cfg.channel, cfg.receiver,
+                             cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys,
+                             noise=dl_noise, uplink_noise=ul_noise)
+    detectors = PointDetectors.from_config(cfg.detectors)
     n, b = len(points), chain.num_bs
     toa, az = np.full((n, b), np.nan), np.full((n, b), np.nan)
     pos = np.full((n, 2), np.nan)
@@ -168,8 +126,8 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
     geo_az = np.stack([geometric_azimuth(bs[r], truth[r]) for r in range(n)]) if n else np.zeros((0, b))
     elapsed = 0.0
     for r, i in enumerate(points):
-        if shared_noise:
-            chain.dl_rng = stream(cfg.seed, noise + "/dl", 0, int(i))
+        if dl_noise is not None:
+            dl_noise.supply(stream(cfg.seed, noise + "/dl", 0, int(i)))
         t = time.perf_counter()
         res = chain(bs_ue, int(i), stream(cfg.seed, noise, 0, int(i)), frame=int(i),
                     reference_azimuth=geo_az[r])
@@ -180,11 +138,9 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
         ok = res.position.ok
         if ok:
             pos[r] = res.position.position[:2]
-        ul = res.uplink.position if res.uplink is not None else None
-        dec[r] = (ok, hmac(res.tags_valid, res.detected).valid,
-                  absa(res.azimuth, bs[r], reference_position=truth[r]).valid,
-                  hs(res.position.position if ok else None,
-                     ul.position if (ul is not None and ul.ok) else None).valid)
+        # ABSA against the true position (a run's reference is its last validated one)
+        v = point_verdicts(detectors, res, bs[r], truth[r])
+        dec[r] = (ok, v["HMAC"], v["ABSA"], v["Handshake"])
         if progress:
             progress(r + 1, n)
     return BenignRun(points, toa, los_delay, az, geo_az, pos, truth[:, :2], dec,

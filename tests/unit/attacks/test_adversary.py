@@ -35,7 +35,7 @@ def _relay(tmp_path, channel=None, **meaconing):
     geo = build_geometry(cfg, tmp_path)
     prop = compute_propagation(cfg, geo)
     runner = ScenarioRunner(cfg, geo, prop, run_keys(cfg, len(geo.bs_pos)))
-    sig = AdversarySignal(cfg, runner.chains["standard"])
+    sig = AdversarySignal(cfg, runner.roles["standard"].chain)
     args = ("meaconing", 1, 1, prop.bs_ue, prop.bs_adv, geo.adversary.pos[1], geo.ue.pos[1])
     return cfg, sig, sig(*args, stream(cfg.seed, "adversary", 2, 0, 1)), args
 
@@ -79,7 +79,7 @@ def test_fbs_link_gain_spoofed_bs_scales_each_replica_to_its_bs(tmp_path):
         geo = build_geometry(cfg, tmp_path / link)
         prop = compute_propagation(cfg, geo)
         runner = ScenarioRunner(cfg, geo, prop, run_keys(cfg, len(geo.bs_pos)))
-        sig = AdversarySignal(cfg, runner.chains["standard"])
+        sig = AdversarySignal(cfg, runner.roles["standard"].chain)
         grids[link] = sig("fbs", 1, 1, prop.bs_ue, prop.bs_adv, geo.adversary.pos[1], geo.ue.pos[1],
                           stream(cfg.seed, "adversary", 1, 0, 1), adv_ue=prop.adv_ue)
     gain = lambda cir: np.sum(np.mean(np.abs(cir.gains[1]) ** 2, axis=1), axis=-1)  # noqa: E731

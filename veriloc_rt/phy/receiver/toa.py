@@ -146,6 +146,36 @@ class ToAEstimate:
     noise_var: float
 
 
+@dataclass(frozen=True, eq=False)
+class _LagGrid:
+    """The zero-padded delay profile's grid: idx [K] int64, the bins' grid indices; lags [L]
+    int64, the searched lag indices; size : int, the grid size; step : float, s, the lag step."""
+
+    idx: np.ndarray
+    lags: np.ndarray
+    size: int
+    step: float
+
+
+@dataclass(frozen=True, eq=False)
+class _DopplerScan:
+    """The Doppler scan of step 1: spectra [V, A, K] complex64 (sum_b e^{-j2pi nu t_b} S_abk per
+    hypothesis), hypotheses [V] float64, Hz."""
+
+    spectra: np.ndarray
+    hypotheses: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Derotated:
+    """The spectra combined over the blocks at one Doppler: doppler_hz : float, Hz; rot : [B]
+    complex128, e^{-j2pi nu t_b}; combined : [A, K] complex128, sum_b rot_b S_abk."""
+
+    doppler_hz: float
+    rot: np.ndarray
+    combined: np.ndarray
+
+
 def spatial_dof(x: np.ndarray) -> float:
     """Effective chi-square degrees of freedom of sum_a |x_a|^2 for zero-mean samples x.
 
@@ -342,8 +372,10 @@ class ToAEstimator:
         gamma_det = chdtri(dof, cfg.detection_false_alarm / n_cells) / dof
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
-            tau, nu, rot, g = self._pick(cs, (idx, lags, n_up, step), m_rect, g, g_nu, nus, nu, rot,
-                                         tc, nv, dof)
+            scan = _DopplerScan(g_nu, nus) if cfg.doppler_max_hz > 0 else None
+            tau, d = self._pick(cs, _LagGrid(idx, lags, n_up, step), m_rect, scan,
+                                _Derotated(nu, rot, g), tc, nv, dof)
+            nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
             tau = float(lags[int(np.argmax(m_rect))] * step)
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
@@ -351,17 +383,22 @@ class ToAEstimator:
                            peak=self._eval(g, cs.freqs, tau), snapshots=cs.at_delay(tau) * rot,
                            noise_var=nv)
 
-    def _pick(self, cs: CrossSpectra, grid: tuple, m_rect: np.ndarray, g: np.ndarray, g_nu, nus,
-              nu: float, rot: np.ndarray, tc: np.ndarray, nv: float, dof: float):
-        """Steps 4 and 5 for a detected BS: (ToA, Doppler, block derotation, combined spectra),
-        the last three updated when the first path's own Doppler replaces the scan's.
+    def _pick(self, cs: CrossSpectra, grid: _LagGrid, m_rect: np.ndarray, scan: _DopplerScan | None,
+              start: _Derotated, tc: np.ndarray, nv: float, dof: float) -> tuple[float, _Derotated]:
+        """Steps 4 and 5 for a detected BS: the ToA, and the derotation (Doppler, block phases,
+        combined spectra), ``start`` or, when the first path's own Doppler replaces the scan's,
+        the first path's.
 
-        :param grid: (bin indices, lags, grid size, lag step in s) of the zero-padded profile
-        :param g_nu, nus: the scan's Doppler spectra and hypotheses (None without a scan)
+        :param grid: the zero-padded profile's grid; m_rect: [L] float64, its unwindowed power
+        :param scan: the Doppler scan (None without one)
+        :param tc: [B] float64, s, block times about their mean; nv: per-RE noise variance;
+            dof: the noise's chi-square degrees of freedom
         """
         cfg = self.cfg
         a_n = cs.num_ant
-        idx, lags, n_up, step = grid
+        idx, lags, n_up, step = grid.idx, grid.lags, grid.size, grid.step
+        nu, rot, g = start.doppler_hz, start.rot, start.combined
+        g_nu, nus = (scan.spectra, scan.hypotheses) if scan is not None else (None, None)
         # 4. ToA rule
         if cfg.toa_method == "strongest":
             win = np.ones(cs.freqs.shape)
@@ -408,4 +445,4 @@ class ToAEstimator:
             vals = [float(np.sum(np.abs(self._eval(gw, cs.freqs, tau + d)) ** 2)) for d in (-h, 0.0, h)]
             tau += h * _parabola(*vals)
             h /= 4
-        return tau, nu, rot, g
+        return tau, _Derotated(nu, rot, g)

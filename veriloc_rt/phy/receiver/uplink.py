@@ -15,8 +15,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..channel import (Links, add_noise, apply_frequency, apply_time, dbm_to_watt, re_amplitude,
+from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, re_amplitude,
                        receiver_noise_variance)
+from ..noise import NoiseSource, WhiteNoise
 from ...config.channel import ChannelConfig, ReceiverConfig
 from ...config.nr import NRConfig
 from ..nr.ofdm import OFDM
@@ -53,10 +54,14 @@ class UplinkPositioner:
     :param nr: waveform config (bandwidth, numerology, sample rate, slots per frame)
     :param channel: channel config (domain, UE power, BS noise figure, timing guard)
     :param receiver: receiver config (SRS parameters, ToA rule, thresholds)
+    :param noise: the BSs' noise source (default :class:`~veriloc_rt.phy.noise.WhiteNoise`, from
+        the call's generator)
     """
 
-    def __init__(self, nr: NRConfig, channel: ChannelConfig, receiver: ReceiverConfig):
+    def __init__(self, nr: NRConfig, channel: ChannelConfig, receiver: ReceiverConfig,
+                 noise: NoiseSource | None = None):
         self.nr, self.channel, self.receiver = nr, channel, receiver
+        self.noise = noise if noise is not None else WhiteNoise()
         self.ofdm = OFDM(nr)
         self.slots = range(nr.slots_per_frame)
         one = srs_grid(nr.num_prb, receiver.srs_n_id, receiver.srs_comb, 0, tuple(receiver.srs_symbols))
@@ -76,12 +81,7 @@ class UplinkPositioner:
             n = self.waveform.shape[-1] + int(np.ceil(self.receiver.search_window_s * self.ofdm.sample_rate_hz)) + 64
             dec = max(1, min(self.channel.time_decimation, self.ofdm.fft_size // self.nr.min_fft_size))
             y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n, dec)
-        return self._add_noise(y, rng)
-
-    def _add_noise(self, y: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """The received signal plus the BS's thermal noise (the one place uplink noise enters;
-        a benchmark can override it)."""
-        return add_noise(y, self.noise_var, rng)
+        return self.noise(y, self.noise_var, rng)
 
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
                  rng: np.random.Generator) -> UplinkResult:

@@ -1,0 +1,100 @@
+"""Noise sources alone: the variance they add against the configured receiver noise, and the
+shared grid's identity across domains and slot counts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from veriloc_rt.config.channel import ChannelConfig
+from veriloc_rt.config.nr import NRConfig
+from veriloc_rt.phy.channel import receiver_noise_variance
+from veriloc_rt.phy.noise import GridNoise, WhiteNoise
+from veriloc_rt.phy.nr.ofdm import OFDM
+
+#: Boltzmann's constant (J/K, SI 2019 exact) and the reference temperature T0 = 290 K (ITU-R P.372)
+K_B, T0 = 1.380649e-23, 290.0
+#: sample variance of n complex Gaussian samples: relative std 1 / sqrt(n); n >= 1.6e5 here,
+#: 2.5e-3, so 2 % is 8 sigma
+VARIANCE_REL = 0.02
+#: float64 round-off of an orthonormal FFT pair on O(1e-12) values
+ROUNDOFF = 1e-9
+
+
+def grid_shape(ofdm: OFDM, slots: int, ant: int = 5) -> tuple:
+    return (ant, slots, 14, ofdm.num_subcarriers)
+
+
+@pytest.mark.parametrize("snr_db", [0.0, 20.0])
+def test_white_noise_variance_matches_the_configured_snr(snr_db):
+    """The UE's variance per RE is k T0 F f_s (F = 9 dB, the UE's noise figure); a signal of
+    per-RE power P = var * 10^(SNR/10) plus the source's noise has measured SNR within the
+    sample-variance tolerance of the configured one."""
+    nr = NRConfig(slots_per_frame=2)
+    ofdm = OFDM(nr)
+    ch = ChannelConfig()
+    var = receiver_noise_variance(ch, ofdm.sample_rate_hz, ch.ue_noise_figure_db)
+    assert var == pytest.approx(K_B * T0 * 10 ** (ch.ue_noise_figure_db / 10) * ofdm.sample_rate_hz,
+                                rel=1e-12)
+    rng = np.random.default_rng(1)
+    amp = np.sqrt(var * 10 ** (snr_db / 10))
+    phases = np.exp(2j * np.pi * rng.random(grid_shape(ofdm, 2)))
+    x = amp * phases
+    y = WhiteNoise()(x, var, np.random.default_rng(2))
+    n = y - x
+    assert np.mean(np.abs(n) ** 2) == pytest.approx(var, rel=VARIANCE_REL)
+    measured_snr_db = 10 * np.log10(np.mean(np.abs(x) ** 2) / np.mean(np.abs(n) ** 2))
+    assert measured_snr_db == pytest.approx(snr_db, abs=10 * np.log10(1 + VARIANCE_REL))
+    # circular: real and imaginary parts carry half each
+    assert np.var(n.real) == pytest.approx(var / 2, rel=VARIANCE_REL)
+
+
+def test_white_noise_draws_a_grid_slot_major():
+    """The first slots' noise does not depend on the number of slots (the tags-only call of the
+    chain receives the first slots alone): the same generator state gives the same first slot."""
+    ofdm = OFDM(NRConfig(slots_per_frame=4))
+    one = WhiteNoise()(np.zeros(grid_shape(ofdm, 1)), 1.0, np.random.default_rng(3))
+    four = WhiteNoise()(np.zeros(grid_shape(ofdm, 4)), 1.0, np.random.default_rng(3))
+    np.testing.assert_array_equal(one[:, 0], four[:, 0])
+
+
+def test_zero_variance_adds_nothing():
+    x = np.ones((2, 7), complex)
+    for src in (WhiteNoise(), GridNoise(OFDM(NRConfig(slots_per_frame=1)), range(1))):
+        y = src(x, 0.0, np.random.default_rng(0))
+        np.testing.assert_array_equal(y, x)
+        assert y is not x
+
+
+def test_grid_noise_reaches_grid_and_iq_alike():
+    """The supplied generator's grid is added to a grid as is, and OFDM-modulated into IQ; the
+    receiver's demodulation of that IQ gives the same grid back (orthonormal FFT, CP discarded):
+    second method, the demodulated IQ against the frequency-domain result."""
+    nr = NRConfig(slots_per_frame=2)
+    ofdm, slots = OFDM(nr), range(2)
+    var = 3e-12
+    g = GridNoise(ofdm, slots, np.random.default_rng(5))(np.zeros(grid_shape(ofdm, 2)), var,
+                                                          np.random.default_rng(0))
+    n_iq = ofdm.num_samples(slots) + 100   # a receive buffer longer than the frame
+    iq = GridNoise(ofdm, slots, np.random.default_rng(5))(np.zeros((5, n_iq), complex), var,
+                                                           np.random.default_rng(0))
+    np.testing.assert_allclose(ofdm.demodulate(iq, slots), g, atol=ROUNDOFF * np.sqrt(var))
+    assert np.all(iq[:, ofdm.num_samples(slots):] == 0)   # the tail gets none
+    assert np.mean(np.abs(g) ** 2) == pytest.approx(var, rel=VARIANCE_REL)
+
+
+def test_grid_noise_follows_the_call_generator_only_without_a_supplied_one():
+    ofdm = OFDM(NRConfig(slots_per_frame=1))
+    src = GridNoise(ofdm, range(1))
+    assert src.follows_call_rng
+    x = np.zeros(grid_shape(ofdm, 1))
+    a = src(x, 1.0, np.random.default_rng(7))
+    src.supply(np.random.default_rng(7))
+    assert not src.follows_call_rng
+    call = np.random.default_rng(99)
+    state = call.bit_generator.state
+    b = src(x, 1.0, call)
+    np.testing.assert_array_equal(a, b)                 # the supplied generator's draws
+    assert call.bit_generator.state == state            # the call's generator untouched
+    with pytest.raises(TypeError, match="rng"):
+        src.supply(7)

@@ -1,0 +1,197 @@
+"""The channel stage: a point's links, power control, the received signal with noise and the
+adversary's signal.
+
+:class:`DownlinkChannel` turns a point's CIRs into :class:`DownlinkLinks` (links, transmit powers
+after power control, the receiver's timing reference) and then into what the UE receives
+(:class:`Received`): the serving BSs' frame through their links
+(:mod:`veriloc_rt.phy.channel`, frequency or time domain), the receiver's noise (a
+:class:`~veriloc_rt.phy.noise.NoiseSource`), plus the adversary's signal through its link.
+
+The serving BSs' signal plus noise does not depend on the adversary, so a run evaluating several
+scenarios at one point computes it once: :class:`KeptDraw` keeps the last one under a
+:class:`SignalKey` and the generator's state on entry, and a call with the same key and state
+gets it back with the generator moved past the noise draws, as if drawn again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...config.channel import ChannelConfig
+from ...propagation.cir import CIR
+from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, equal_arrival_powers,
+                       re_amplitude, timing_reference)
+from ..nr.ofdm import OFDM
+from ..noise import NoiseSource
+from .frames import FrameSignals
+
+__all__ = ["Adversary", "DownlinkChannel", "DownlinkLinks", "KeptDraw", "Received", "SignalKey"]
+
+
+@dataclass(frozen=True, eq=False)
+class Adversary:
+    """What the adversary transmits and its link to the UE.
+
+    cir : CIR [num_points, 1], adversary -> UE
+    signal : in the unit-RE normalisation of the BSs' grids: a grid [num_slots, 14,
+        num_subcarriers] complex aligned with the frame, or IQ [num_samples] complex at
+        ``nr.resolved_sample_rate_hz`` starting at t = 0
+    """
+
+    cir: CIR
+    signal: np.ndarray
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.cir, CIR):
+            raise TypeError(f"Argument `cir` must be a CIR, not {type(self.cir).__name__}")
+        object.__setattr__(self, "signal", np.asarray(self.signal))
+        if self.signal.ndim not in (1, 3):
+            raise ValueError(f"Argument `signal` must be a grid [S, 14, K] or IQ [N], not "
+                             f"shape {self.signal.shape}")
+
+
+@dataclass(frozen=True, eq=False)
+class DownlinkLinks:
+    """One point's downlink.
+
+    links : Links, serving BS -> UE; tx_power_w : [num_bs] float64, W, after power control
+    amplitudes : [num_bs] float64, per-RE amplitude of each BS's grid (unit-RE normalisation)
+    timing_reference_s : float, s, t0, the receiver's timing reference
+    adversary : Links or None, adversary -> UE; adversary_signal : as :attr:`Adversary.signal`
+    """
+
+    links: Links
+    tx_power_w: np.ndarray
+    amplitudes: np.ndarray
+    timing_reference_s: float
+    adversary: Links | None = None
+    adversary_signal: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Received:
+    """What the UE's array receives: grid [A, S, 14, K] complex128 (after the receiver's OFDM
+    demodulation in the time domain); iq [A, N] complex128 (time domain, else None)."""
+
+    grid: np.ndarray
+    iq: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class SignalKey:
+    """What a received signal depends on besides the generator: the CIR (the same object: a CIR
+    compares by identity), the point, the frame, the replica mode and the number of slots."""
+
+    cir: CIR
+    point: int
+    frame: int
+    replica: str
+    num_slots: int
+
+
+class KeptDraw:
+    """The last value computed from a generator, kept under a key and the generator's state."""
+
+    def __init__(self):
+        self._entry: tuple | None = None   # (key, state on entry, value, state after)
+
+    def __call__(self, key: Any, rng: np.random.Generator, compute: Callable[[], Any]):
+        """``compute()`` (which draws from ``rng``), or the value kept by the last call with an
+        equal key and the same ``rng`` state, with ``rng`` moved past its draws."""
+        state = rng.bit_generator.state
+        e = self._entry
+        if e is not None and e[0] == key and e[1] == state:
+            rng.bit_generator.state = e[3]
+            return e[2]
+        value = compute()
+        self._entry = (key, state, value, rng.bit_generator.state)
+        return value
+
+
+class DownlinkChannel:
+    """Links, power control and the received signal of a chain.
+
+    :param channel: channel config (powers, power control, domain, guard, adversary power)
+    :param ofdm: the waveform's OFDM; slots: the frame's slot numbers
+    :param bs_power_factor: carrier power to PRS-RE power (:func:`~veriloc_rt.phy.channel.occupied_power_factor`)
+    :param buffer_samples: length of the received IQ (time domain)
+    :param decimation: time-domain path application decimation
+    :param noise: the UE's noise source; noise_var: its variance per sample, W
+    """
+
+    def __init__(self, channel: ChannelConfig, ofdm: OFDM, slots, bs_power_factor: float,
+                 buffer_samples: int, decimation: int, noise: NoiseSource, noise_var: float):
+        self.channel, self.ofdm, self.slots = channel, ofdm, slots
+        self.bs_power_factor = float(bs_power_factor)
+        self.buffer_samples, self.decimation = int(buffer_samples), int(decimation)
+        self.noise, self.noise_var = noise, float(noise_var)
+        self.frame_samples = ofdm.num_samples(slots)
+        self.adversary_amplitude = re_amplitude([dbm_to_watt(channel.adversary_power_dbm)], ofdm)
+        self._kept = KeptDraw()
+
+    def links(self, bs_ue: CIR, point: int, adversary: Adversary | None = None) -> DownlinkLinks:
+        """The links of point ``point``, the powers after power control and t0."""
+        links = Links.from_cir(bs_ue, point)
+        powers = equal_arrival_powers(links.power_gain(), float(dbm_to_watt(self.channel.bs_max_power_dbm)),
+                                      self.channel.power_control)
+        amps = re_amplitude(powers * self.bs_power_factor, self.ofdm)
+        t0 = timing_reference(links, self.channel.timing_guard_s)
+        if adversary is None:
+            return DownlinkLinks(links, powers, amps, t0)
+        return DownlinkLinks(links, powers, amps, t0, Links.from_cir(adversary.cir, point),
+                             adversary.signal)
+
+    def benign(self, dl: DownlinkLinks, frame: FrameSignals, rng: np.random.Generator,
+               num_slots: int, key: SignalKey | None = None) -> np.ndarray:
+        """The serving BSs' signal plus noise (read-only): grid [A, num_slots, 14, K] or IQ [A, N].
+
+        :param key: identifies it for :class:`KeptDraw` (None, or a noise source whose draws
+            do not follow ``rng`` alone: not kept)
+        """
+        t0 = dl.timing_reference_s
+
+        def compute():
+            if self.channel.domain == "frequency":
+                x = apply_frequency(dl.links, frame.grids[:, :num_slots], dl.amplitudes, self.ofdm,
+                                    self.slots[:num_slots], t0)
+            else:
+                x = apply_time(dl.links, frame.waveform, dl.amplitudes, self.ofdm.sample_rate_hz, t0,
+                               self.buffer_samples, self.decimation)
+            x = self.noise(x, self.noise_var, rng)
+            x.flags.writeable = False
+            return x
+
+        if key is None or not self.noise.follows_call_rng:
+            return compute()
+        return self._kept(key, rng, compute)
+
+    def __call__(self, dl: DownlinkLinks, frame: FrameSignals, rng: np.random.Generator,
+                 num_slots: int | None = None, key: SignalKey | None = None) -> Received:
+        """What the UE receives: the serving BSs' signal plus noise (:meth:`benign`) plus the
+        adversary's signal.
+
+        :param num_slots: frequency domain only: the grid of the first ``num_slots`` slots alone
+            (the same values as those slots of the whole grid: the noise is drawn slot-major)
+        """
+        fs = self.ofdm.sample_rate_hz
+        t0 = dl.timing_reference_s
+        m = len(self.slots) if num_slots is None else num_slots
+        base = self.benign(dl, frame, rng, m, key)
+        adv, sig, amp = dl.adversary, dl.adversary_signal, self.adversary_amplitude
+        if self.channel.domain == "frequency":
+            if adv is None:
+                return Received(base, None)
+            slots = self.slots[:m]
+            if sig.ndim == 3:
+                return Received(base + apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0), None)
+            iq = apply_time(adv, sig[None], amp, fs, t0, self.frame_samples, self.decimation)
+            return Received(base + self.ofdm.demodulate(iq, self.slots)[:, :m], None)
+        iq = base
+        if adv is not None:
+            wave = self.ofdm.modulate(sig, self.slots) if sig.ndim == 3 else sig
+            iq = iq + apply_time(adv, wave[None], amp, fs, t0, self.buffer_samples, self.decimation)
+        return Received(self.ofdm.demodulate(iq, self.slots), iq)

@@ -1,0 +1,129 @@
+"""The transmitter stage: the serving BSs' frame (PRS, encryption, tags) and its local replicas.
+
+:class:`FrameSource` is configured once per chain (waveform, security, keys) and called per point
+with the serving BSs and the frame counter. A serving set gets its transmitter
+(:class:`~veriloc_rt.phy.transmitter.PRSTransmitter`) and tag verifier once (cached under its
+:class:`ServingSet`); the last frame's signals are kept under their :class:`FrameKey` (the
+scenarios of a point, and the adversary's relay, ask for the same frame in a row).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...config.nr import NRConfig
+from ...config.security import SecurityConfig
+from ...propagation.cir import NO_TX
+from ..nr.ofdm import OFDM
+from ..receiver.tag_verifier import TagVerifier
+from ..security.keys import BSKeys, make_keys
+from ..transmitter import PRSTransmitter
+from .plan import REPLICAS
+
+__all__ = ["DUMMY_ID", "FrameKey", "FrameSignals", "FrameSource", "ServingSet", "ServingSetup"]
+
+#: identities given to empty serving slots (top of the u32 range the tags carry)
+DUMMY_ID = 0xFFFF_FF00
+
+
+@dataclass(frozen=True)
+class ServingSet:
+    """The serving BSs of a point, slot 0 the RSTD reference (``NO_TX``: an empty slot)."""
+
+    bs_ids: tuple[int, ...]
+
+    @classmethod
+    def of(cls, bs_ids: Sequence[int]) -> "ServingSet":
+        return cls(tuple(int(b) for b in bs_ids))
+
+    @property
+    def transmitted_ids(self) -> tuple[int, ...]:
+        """The identities on air: an empty slot ``j`` transmits as ``DUMMY_ID + j``."""
+        return tuple(b if b != NO_TX else DUMMY_ID + j for j, b in enumerate(self.bs_ids))
+
+
+@dataclass(frozen=True)
+class FrameKey:
+    """What a frame's signals depend on: serving set, frame counter, replica mode."""
+
+    serving: ServingSet
+    frame: int
+    replica: str
+
+
+@dataclass(frozen=True, eq=False)
+class ServingSetup:
+    """transmitter : PRSTransmitter of the serving set; verifier : TagVerifier or None (no tags)."""
+
+    transmitter: PRSTransmitter
+    verifier: TagVerifier | None
+
+
+@dataclass(frozen=True, eq=False)
+class FrameSignals:
+    """One frame of the serving BSs, in the unit-RE normalisation.
+
+    grids : [num_bs, num_slots, 14, num_subcarriers] complex128, what each BS transmits
+    waveform : [num_bs, num_samples] complex128, the grids OFDM-modulated (time domain only,
+        else None)
+    replicas : tuple of [num_slots, 14, num_subcarriers] complex128, each BS's local PRS replica
+    """
+
+    grids: np.ndarray
+    waveform: np.ndarray | None
+    replicas: tuple
+
+
+class FrameSource:
+    """Transmitters, tag verifiers and frame signals of a chain.
+
+    :param nr: waveform config; security: encryption and tags
+    :param keys: by BS id, for encryption and tags (empty if neither is used); an empty slot's
+        dummy identity gets keys drawn from its own seed
+    :param time_domain: also OFDM-modulate the grids (the time-domain channel takes waveforms)
+    """
+
+    def __init__(self, nr: NRConfig, security: SecurityConfig, keys: Mapping[int, BSKeys],
+                 time_domain: bool):
+        self.nr, self.security = nr, security
+        self.keys = dict(keys)
+        self.time_domain = bool(time_domain)
+        self.ofdm = OFDM(nr)
+        self.slots = range(nr.slots_per_frame)
+        self._setups: dict[ServingSet, ServingSetup] = {}
+        self._last: tuple[FrameKey, FrameSignals] | None = None
+
+    def setup(self, bs_ids: Sequence[int]) -> ServingSetup:
+        """Transmitter and tag verifier of a serving set (cached)."""
+        serving = ServingSet.of(bs_ids)
+        if serving not in self._setups:
+            keys = dict(self.keys)
+            ids_tx = serving.transmitted_ids
+            for b in ids_tx:
+                if b >= DUMMY_ID and self.keys:
+                    keys[b] = make_keys(b, rng=np.random.default_rng(b))
+            tx = PRSTransmitter(self.nr, self.security, ids_tx, keys or None)
+            ver = (TagVerifier(self.nr, self.security, ids_tx, keys)
+                   if self.security.tag_scheme != "none" else None)
+            self._setups[serving] = ServingSetup(tx, ver)
+        return self._setups[serving]
+
+    def __call__(self, bs_ids: Sequence[int], frame: int, replica: str = "own") -> FrameSignals:
+        """Grids, waveforms and replicas of one frame (the last one is kept).
+
+        :param replica: one of :data:`~veriloc_rt.phy.chain.plan.REPLICAS`
+        """
+        if replica not in REPLICAS:
+            raise ValueError(f"Argument `replica` must be one of {REPLICAS}, not {replica!r}")
+        key = FrameKey(ServingSet.of(bs_ids), int(frame), replica)
+        if self._last is None or self._last[0] != key:
+            tx = self.setup(bs_ids).transmitter
+            grids = tx(frame, self.slots)
+            wave = self.ofdm.modulate(grids, self.slots) if self.time_domain else None
+            enc = None if replica == "own" else replica == "encrypted"
+            reps = tuple(tx.replica(b, frame, self.slots, enc) for b in range(self.nr.num_bs))
+            self._last = (key, FrameSignals(grids, wave, reps))
+        return self._last[1]

@@ -1,0 +1,241 @@
+"""The receiver stages of the chain: timing, DL fix, angles, tags, uplink.
+
+Each is configured once and called per point on the previous stages' typed results:
+
+* :class:`TimingStage`: per BS, cross-spectra of the received signal with the BS's replica,
+  Doppler scan, ToA and hearability (:mod:`~veriloc_rt.phy.receiver.sync`,
+  :mod:`~veriloc_rt.phy.receiver.toa`); RSTDs against BS 0 -> :class:`Timing`;
+* :class:`FixStage`: the DL fix from the RSTDs of the detected BSs
+  (:class:`~veriloc_rt.phy.receiver.multilateration.Multilaterator`);
+* :class:`AngleStage`: the AoA per detected BS (:class:`~veriloc_rt.phy.receiver.aoa.AoAEstimator`),
+  the ULA's mirror ambiguity resolved against the caller's reference azimuths -> :class:`Angles`;
+* :class:`TagStage`: every checked tag of each detected BS, on the grid combined towards its
+  peak (:class:`~veriloc_rt.phy.receiver.tag_verifier.TagVerifier`);
+* :class:`UplinkStage`: the UE's SRS at the BSs and the UL fix
+  (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`), kept like the downlink's signal
+  (:class:`~veriloc_rt.phy.chain.downlink.KeptDraw`): the adversary does not touch it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...config.channel import ChannelConfig, ReceiverConfig
+from ...propagation.cir import CIR
+from ..channel import Links
+from ..nr.ofdm import OFDM
+from ..receiver.aoa import AoAEstimate, AoAEstimator
+from ..receiver.multilateration import MultilaterationResult, Multilaterator
+from ..receiver.sync import frequency_cross_spectra, noise_dof, noise_variance, time_cross_spectra
+from ..receiver.tag_verifier import TagVerifier, estimate_tag_channel
+from ..receiver.toa import CrossSpectra, ToAEstimate, ToAEstimator
+from ..receiver.uplink import UplinkPositioner, UplinkResult
+from .downlink import KeptDraw, Received
+
+__all__ = ["AngleStage", "Angles", "FixStage", "TagStage", "Timing", "TimingStage", "UplinkKey",
+           "UplinkStage", "zenith_from_fix"]
+
+
+@dataclass(frozen=True, eq=False)
+class Timing:
+    """Timing of the serving BSs at one point.
+
+    estimates : tuple of ToAEstimate, per BS; spectra : tuple of CrossSpectra, per BS
+    detected : [num_bs] bool; toa_s : [num_bs] float64, s, t0 + lag (NaN where not detected)
+    rstd_s : [num_bs] float64, s, toa_i - toa_0
+    """
+
+    estimates: tuple
+    spectra: tuple
+    detected: np.ndarray
+    toa_s: np.ndarray
+    rstd_s: np.ndarray
+
+
+class TimingStage:
+    """ToA of every serving BS from the received signal and the BSs' replicas.
+
+    :param toa: the ToA estimator; ofdm, slots: the waveform's
+    :param channel: front end (``per_re_receiver``) and timing guard
+    :param search_window_s: s, lags searched by the time-domain correlator
+    :param busy_symbols: the PRS symbols of a slot (the others estimate the noise)
+    :param noise_var: W, the receiver's nominal noise variance (used where the free symbols give
+        no estimate)
+    """
+
+    def __init__(self, toa: ToAEstimator, ofdm: OFDM, slots, channel: ChannelConfig,
+                 search_window_s: float, busy_symbols: Sequence[int], noise_var: float):
+        self.toa, self.ofdm, self.slots, self.channel = toa, ofdm, slots, channel
+        self.search_window_s = float(search_window_s)
+        self.busy_symbols = tuple(int(s) for s in busy_symbols)
+        self.noise_var = float(noise_var)
+
+    def __call__(self, received: Received, replicas: Sequence[np.ndarray], t0: float) -> Timing:
+        """:param replicas: per BS [S, 14, K] complex; t0: s, the timing reference"""
+        grid = received.grid
+        nv = noise_variance(grid, self.busy_symbols)
+        nv = nv if np.isfinite(nv) else self.noise_var
+        dof = noise_dof(grid, self.busy_symbols)
+        ests, spectra = [], []
+        for rep in replicas:
+            if self.channel.per_re_receiver:
+                cs = frequency_cross_spectra(grid, rep, self.ofdm, self.slots)
+            else:
+                cs = time_cross_spectra(received.iq, rep, self.ofdm, self.slots,
+                                        self.channel.timing_guard_s, self.search_window_s)
+            ests.append(self.toa(cs, nv, dof))
+            spectra.append(cs)
+        det = np.array([e.detected for e in ests])
+        toa = np.array([t0 + e.toa_s if e.detected else np.nan for e in ests])
+        return Timing(tuple(ests), tuple(spectra), det, toa, toa - toa[0])
+
+
+class FixStage:
+    """The DL fix from the RSTDs of the detected BSs (BS 0 the reference).
+
+    :param max_residual_m: m, the solver's residual check
+    """
+
+    def __init__(self, max_residual_m: float):
+        self.max_residual_m = float(max_residual_m)
+
+    def __call__(self, timing: Timing, bs_pos: np.ndarray, ue_height_m: float) -> MultilaterationResult:
+        """:param bs_pos: [num_bs, 3] float64, m; ue_height_m: m, the UE's known height"""
+        solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
+        det = timing.detected
+        return solver(bs_pos, np.where(det, timing.rstd_s, np.nan), 0, det)
+
+
+def zenith_from_fix(bs_pos: np.ndarray, fix: MultilaterationResult) -> np.ndarray:
+    """[num_bs] float64, rad, zenith of arrival from each BS seen from the DL fix (pi/2 without a
+    fix): arccos(dz / |d|), d = BS - fix."""
+    if not fix.ok:
+        return np.full(len(bs_pos), np.pi / 2)
+    d = bs_pos - fix.position[None, :]
+    return np.arccos(np.clip(d[:, 2] / np.linalg.norm(d, axis=1), -1.0, 1.0))
+
+
+@dataclass(frozen=True, eq=False)
+class Angles:
+    """aoa : list of AoAEstimate or None (None: BS not detected); azimuth : [num_bs] float64,
+    rad, resolved against the reference (NaN without one)."""
+
+    aoa: list
+    azimuth: np.ndarray
+
+
+class AngleStage:
+    """AoA per detected BS.
+
+    :param aoa: the AoA estimator
+    :param snapshots: 'peak' (the per-block correlations at the ToA) or every occupied bin of
+        the Doppler-derotated cross-spectra (``receiver.aoa_snapshots``)
+    """
+
+    def __init__(self, aoa: AoAEstimator, snapshots: str):
+        self.aoa, self.snapshots = aoa, snapshots
+
+    def __call__(self, timing: Timing, zenith: np.ndarray, reference_azimuth=None) -> Angles:
+        """:param zenith: [num_bs] float64, rad; reference_azimuth: [num_bs] float64, rad, or None"""
+        n = len(timing.estimates)
+        aoas: list[AoAEstimate | None] = []
+        az = np.full(n, np.nan)
+        for b, (e, cs) in enumerate(zip(timing.estimates, timing.spectra)):
+            if not e.detected:
+                aoas.append(None)
+                continue
+            est = self.aoa(self._snapshots(e, cs), float(zenith[b]))
+            aoas.append(est)
+            if reference_azimuth is not None:
+                ref = np.broadcast_to(np.asarray(reference_azimuth, dtype=float), (n,))[b]
+                az[b] = float(est.resolve(ref)[0])
+        return Angles(aoas, az)
+
+    def _snapshots(self, e: ToAEstimate, cs: CrossSpectra) -> np.ndarray:
+        if self.snapshots == "peak":
+            return e.snapshots
+        rot = np.exp(-2j * np.pi * e.doppler_hz * (cs.block_times - cs.block_times.mean()))
+        x = cs.dense * rot[None, :, None]
+        return x[:, cs.ref_power > 0]
+
+
+class TagStage:
+    """The tag check of every detected BS.
+
+    :param tag_slots: indices (in the frame) of the slots whose tags are checked
+    :param slots: the frame's slot numbers
+    """
+
+    def __init__(self, tag_slots: Sequence[int], slots):
+        self.tag_slots, self.slots = tuple(int(s) for s in tag_slots), slots
+
+    def __call__(self, verifier: TagVerifier, grid: np.ndarray, estimates: Sequence[ToAEstimate],
+                 frame: int, replicas: Sequence[np.ndarray] | None) -> np.ndarray:
+        """[num_bs] bool: every checked tag of each detected BS verifies.
+
+        :param grid: [A, S, 14, K] complex, the received grid (its first slots suffice)
+        :param replicas: per BS [S, 14, K], the BSs' own PRS replicas (None: the verifier
+            regenerates them)
+        """
+        tags = np.zeros(len(estimates), dtype=bool)
+        for b, e in enumerate(estimates):
+            rep = replicas[b] if replicas is not None else None
+            tags[b] = e.detected and self.one(verifier, grid, e, b, frame, rep)
+        return tags
+
+    def one(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
+            replica: np.ndarray | None) -> bool:
+        """All checked tags of BS ``bs`` verify, on the grid combined towards its peak (MRC).
+
+        :param replica: [S, 14, K] the BS's own PRS replica (None: the verifier regenerates it)
+        """
+        w = np.conj(est.peak)
+        nrm = np.linalg.norm(w)
+        w = w / nrm if nrm > 0 else np.ones_like(w) / np.sqrt(w.size)
+        lay = verifier.layout
+        for s in self.tag_slots:
+            combined = np.tensordot(w, grid[:, s], axes=(0, 0))
+            if replica is None:
+                ok = verifier(combined, bs, frame, int(self.slots[s]))
+            else:  # same estimate as the verifier's own, from the cached replica
+                h_t, nv = estimate_tag_channel(combined, lay, bs, replica[s], verifier.smoothing)
+                full = np.zeros_like(combined)
+                full[lay.symbols[:, None], lay.tag_subcarriers(bs)] = h_t
+                ok = verifier(combined, bs, frame, int(self.slots[s]), channel=full, noise_var=nv)
+            if not ok:
+                return False
+        return True
+
+
+@dataclass(frozen=True)
+class UplinkKey:
+    """What an uplink fix depends on besides the generator: the CIR (the same object) and the point."""
+
+    cir: CIR
+    point: int
+
+
+class UplinkStage:
+    """The UL fix of a point, the last one kept under its :class:`UplinkKey` and the generator's
+    state (the adversary does not touch the uplink).
+
+    :param positioner: the uplink receiver and solver
+    :param element_pos: [num_ant, 3] float64, m, the UE's array (the SRS leaves its centre)
+    """
+
+    def __init__(self, positioner: UplinkPositioner, element_pos: np.ndarray):
+        self.positioner, self.element_pos = positioner, element_pos
+        self._kept = KeptDraw()
+
+    def __call__(self, bs_ue: CIR, point: int, bs_pos: np.ndarray, ue_height_m: float,
+                 rng: np.random.Generator) -> UplinkResult:
+        def compute():
+            return self.positioner(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos,
+                                   ue_height_m, rng)
+
+        if not self.positioner.noise.follows_call_rng:
+            return compute()
+        return self._kept(UplinkKey(bs_ue, point), rng, compute)

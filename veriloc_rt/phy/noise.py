@@ -1,0 +1,97 @@
+"""Noise sources: where a receiver's thermal noise comes from.
+
+A noise source is a small block called on a received signal (a grid ``[A, S, 14, K]`` in the
+frequency domain, IQ ``[A, N]`` in the time domain), the per-sample (= per-RE, unitary OFDM)
+variance and a generator; it returns the signal plus circular complex Gaussian noise of that
+variance, CN(0, sigma^2) per sample (the variance from
+:func:`~veriloc_rt.phy.channel.receiver_noise_variance`: k T0 F f_s, Sec. 2 of ITU-R P.372 for
+k T0). The chain (:mod:`veriloc_rt.phy.chain`) and the uplink receiver
+(:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`) take one each:
+
+* :class:`WhiteNoise` (the run's): i.i.d. draws from the generator of the call, i.e. the run's
+  per-point stream ``stream(seed, "noise", mode, point)``; a grid's draws run slot-major, so its
+  first slots get the same noise whatever the number of slots.
+* :class:`GridNoise`: the noise drawn as a per-RE grid, slot-major, added to a grid or
+  OFDM-modulated into IQ (orthonormal: each FFT window gets the grid back exactly; CP and tail
+  get none), from a generator supplied to the source (:meth:`GridNoise.supply`) or else the
+  call's. Chains of different sample rate, domain or number of slots then see the same noise on
+  the same REs (the fidelity bench compares them so).
+
+``follows_call_rng`` says whether the draws depend on the call's generator alone: only then may
+a caller keep a received signal per generator state and give it back with the generator moved
+past the draws (:class:`veriloc_rt.phy.chain.downlink.DownlinkChannel`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .channel import add_noise
+from .nr.ofdm import OFDM
+from .nr.prs import SYMBOLS_PER_SLOT
+
+__all__ = ["GridNoise", "NoiseSource", "WhiteNoise"]
+
+
+class NoiseSource:
+    """Adds a receiver's thermal noise (the base of :class:`WhiteNoise` and :class:`GridNoise`)."""
+
+    #: the draws depend only on the generator passed to the call
+    follows_call_rng: bool = True
+
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        """``x`` plus noise of ``variance`` per sample (a new complex128 array).
+
+        :param x: [A, S, 14, K] complex grid or [A, N] complex IQ
+        :param variance: float, W per sample and RE (0: no noise, ``x`` copied)
+        :param rng: the call's generator
+        """
+        raise NotImplementedError
+
+
+class WhiteNoise(NoiseSource):
+    """i.i.d. CN(0, variance) per sample from the call's generator; a grid's draws run along the
+    slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1)."""
+
+    follows_call_rng = True
+
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+
+
+class GridNoise(NoiseSource):
+    """Noise drawn as a per-RE grid ``[A, S, 14, K]``, slot-major, for every signal form.
+
+    :param ofdm: the receiver's OFDM (subcarriers; modulation of the grid into IQ)
+    :param slots: the frame's slot numbers
+    :param rng: the generator the draws come from (None: the call's); :meth:`supply` replaces it
+    """
+
+    def __init__(self, ofdm: OFDM, slots, rng: np.random.Generator | None = None):
+        self.ofdm, self.slots = ofdm, slots
+        self.rng = None
+        self.supply(rng)
+
+    @property
+    def follows_call_rng(self) -> bool:   # type: ignore[override]
+        return self.rng is None
+
+    def supply(self, rng: np.random.Generator | None) -> None:
+        """Draw from ``rng`` from now on (None: from the call's generator)."""
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
+        self.rng = rng
+
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        if variance <= 0:
+            return add_noise(x, variance, rng)
+        src = self.rng if self.rng is not None else rng
+        num_slots = x.shape[1] if x.ndim == 4 else len(self.slots)   # a grid may hold the first slots
+        shape = (x.shape[0], num_slots, SYMBOLS_PER_SLOT, self.ofdm.num_subcarriers)
+        g = add_noise(np.zeros(shape, dtype=np.complex128), variance, src, major_axis=1)
+        if x.ndim == 4:
+            return x + g
+        iq = self.ofdm.modulate(g, self.slots)
+        out = np.array(x, dtype=np.complex128)
+        out[:, :iq.shape[-1]] += iq
+        return out
