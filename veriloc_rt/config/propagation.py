@@ -118,8 +118,9 @@ class RayTracingConfig:
                                  "of sight and the reflections; 'both': Sionna's sampled "
                                  "diffraction as well; 'sampled': Sionna RT's candidates alone",
                                  choices=("exhaustive", "both", "sampled"))
-    candidate_plane_distance_m: float = param(20.0, "'exhaustive' candidates reflect on planes "
-                                              "within this distance of a link's end",
+    candidate_plane_distance_m: float = param(30.0, "'exhaustive' candidates reflect on planes "
+                                              "within this distance of a link's end (cost "
+                                              "and accuracy: docs/performance.md)",
                                               lo=0.0, hi=1000.0)
     candidate_target_reflections: int = param(2, "'exhaustive' candidates: at most this many "
                                               "reflections between the edge and the Sionna "
