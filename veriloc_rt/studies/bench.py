@@ -184,6 +184,11 @@ class Setting:
             v = "min"
         return f"{self.knob}={v}"
 
+    @property
+    def key(self) -> tuple[str, str]:
+        """(group, label): what identifies the setting within a sweep."""
+        return self.group, self.label
+
 
 @dataclass
 class BenchResult:
@@ -397,8 +402,9 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         bs_ue0 = uma_propagation(geo0, cfg.propagation, cfg.seed).bs_ue
         t_link0 = (time.perf_counter() - t) / (3 * geo0.num_points)
 
-    runs: dict[int, BenignRun] = {}
-    cirs: dict[int, object] = {}
+    # each setting's CIRs and chain run, keyed by its (group, label): unique within a sweep
+    runs: dict[tuple[str, str], BenignRun] = {}
+    cirs: dict[tuple[str, str], object] = {}
     # ray-tracing group: trace, then the config's chain on the traced CIRs
     rt = [s for s in settings if s.group == "raytrace"]
     for s in sorted(rt, key=lambda s: s.role != "reference"):   # reference first
@@ -413,14 +419,14 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
             # costliest setting by far
             bs_ue, t_link = _trace(c, geo, idx, repeats=1 if s.role == "reference" else 2)
         s.time_s, s.time_unit = t_link, "link"
-        cirs[id(s)] = bs_ue
-        runs[id(s)] = benign_chain(cfg, geo0, bs_ue, keys, idx)
+        cirs[s.key] = bs_ue
+        runs[s.key] = benign_chain(cfg, geo0, bs_ue, keys, idx)
         tick(s.label)
     if rt:
         ref = next(s for s in rt if s.role == "reference")
         for s in rt:
-            s.metrics = channel_deviation(cirs[id(s)], cirs[id(ref)], idx)
-            s.metrics.update(chain_deviation(runs[id(s)], runs[id(ref)]))
+            s.metrics = channel_deviation(cirs[s.key], cirs[ref.key], idx)
+            s.metrics.update(chain_deviation(runs[s.key], runs[ref.key]))
     # waveform group, on the config's CIRs
     wf = [s for s in settings if s.group == "waveform"]
     for s in sorted(wf, key=lambda s: s.role != "reference"):
@@ -428,14 +434,14 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         r = benign_chain(c, geo0, bs_ue0, keys, idx, shared_noise=True,
                          noise="noise-floor" if s.role == "noise floor" else "noise")
         s.time_s, s.time_unit = r.seconds_per_point, "point"
-        runs[id(s)] = r
+        runs[s.key] = r
         tick(s.label)
     ref = next((s for s in wf if s.role == "reference"), None)
     own = next((s for s in wf if s.role == "config"), None)
     for s in wf:
         # the noise floor is the config's setting against itself with other noise draws
         base = own if s.role == "noise floor" else ref
-        s.metrics = chain_deviation(runs[id(s)], runs[id(base)])
+        s.metrics = chain_deviation(runs[s.key], runs[base.key])
     for g in {s.group for s in settings}:
         grp = [s for s in settings if s.group == g and s.role != "noise floor"]
         front = pareto_front([s.time_s for s in grp], [s.metrics.get(PARETO_METRIC[g]) for s in grp],

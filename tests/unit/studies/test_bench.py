@@ -187,3 +187,12 @@ def test_sweep_settings_full_raytrace_reference_is_the_converged_one():
     assert ref.patch["scene.margin_m"] == 450.0 and ref.patch["propagation.raytrace.diffraction"] is True
     # a UE's three links fit one PathSolver call: 3 targets x depth x rays <= work_per_call
     assert 3 * 4 * 10_000_000 <= ref.patch["propagation.raytrace.work_per_call"]
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_every_setting_of_a_sweep_has_its_own_key(quick):
+    """The sweep keeps each setting's CIRs and chain run under Setting.key: two settings with
+    one key would silently share (and overwrite) them."""
+    settings = sweep_settings(config_from_dict({}), quick=quick)
+    keys = [s.key for s in settings]
+    assert len(keys) > 10 and len(set(keys)) == len(keys)
