@@ -18,7 +18,7 @@ wedge diffraction, no refraction (the defaults except the depth). Boundaries fou
   mesh: for a BS at x = 60 m, 25 m high and a UE 1.5 m high it disappears at
   x_UE = 60 + 40 * 26.5 / 25 = 102.4 m (found between 102.2 m and 102.6 m), 2.4 m beyond the
   scene's edge; the line of sight survives everywhere (also 900 m outside the scene, where
-  it is the only path).
+  only it and the block's backward edge diffraction remain).
 """
 
 from pathlib import Path
@@ -158,10 +158,15 @@ def test_ground_reflection_vanishes_where_its_specular_point_leaves_the_scene(tr
         ground = img & (n_int == 1) & (inter[:, 0] == INTERACTION_SPECULAR)
         assert np.any(los & (n_int == 0)), f"line of sight at x = {x}"
         assert ground.any() == (x < x_edge), f"ground reflection at x = {x}"
-    # far outside the ground: the LoS, and nothing reflected; the block behind the BS still
-    # diffracts backwards (one edge, found by the exhaustive edge candidates)
+    # far outside the ground: the LoS, and nothing reflected on the UE's side (no ground under
+    # it); the block behind the BS still diffracts backwards (one edge, found by the exhaustive
+    # edge candidates), straight to the BS or via the ground between the block and the BS (a
+    # plane 25 m below the BS: within FID.candidate_plane_distance_m of it)
+    assert FID.candidate_plane_distance_m > bs[2]
     v = raw.valid[-1]
     inter = raw.interactions[-1][v]
     assert np.count_nonzero(np.all(inter == 0, axis=-1)) == 1
-    assert not np.any(inter == INTERACTION_SPECULAR)
-    assert np.all(np.count_nonzero(inter, axis=-1) <= 1)
+    kinds = {tuple(int(k) for k in row) for row in inter}
+    assert kinds <= {(0, 0), (INTERACTION_DIFFRACTION, 0),
+                     (INTERACTION_DIFFRACTION, INTERACTION_SPECULAR)}, kinds
+    assert (INTERACTION_DIFFRACTION, 0) in kinds
