@@ -33,6 +33,8 @@ from veriloc_rt.world.scene.canyon import urban_canyon
 from veriloc_rt.world.scene.export import read_ply, write_ply
 from veriloc_rt.world.trajectory import check_points, follower, load_csv_trajectory
 
+from .schema_strategies import from_schema
+
 #: per-example time limit, ms: validation of one input is milliseconds; the limit catches a
 #: hang or a blow-up (a 2-core CI machine shared with other jobs, hence the slack)
 DEADLINE_MS = 5000
@@ -41,35 +43,6 @@ CHECK_DEADLINE_MS = 20000
 
 
 # --- strategies --------------------------------------------------------------------------------
-
-def from_schema(s: dict) -> st.SearchStrategy:
-    """Values valid for one node of the config's JSON schema (all properties optional)."""
-    if "enum" in s:
-        return st.sampled_from(s["enum"])
-    if "anyOf" in s:  # an optional field: its range sits beside the alternatives
-        bounds = {k: v for k, v in s.items() if k in ("minimum", "exclusiveMinimum", "maximum")}
-        return st.one_of([from_schema({**x, **bounds} if x["type"] in ("number", "integer")
-                                      else x) for x in s["anyOf"]])
-    t = s["type"]
-    if t == "object":
-        return st.fixed_dictionaries({}, optional={k: from_schema(v)
-                                                   for k, v in s["properties"].items()})
-    if t == "integer":
-        return st.integers(s.get("minimum"), s.get("maximum"))
-    if t == "number":
-        lo = s.get("minimum", s.get("exclusiveMinimum"))
-        return st.floats(lo, s.get("maximum"), exclude_min="exclusiveMinimum" in s,
-                         allow_nan=False, allow_infinity=False)
-    if t == "boolean":
-        return st.booleans()
-    if t == "string":
-        return st.text(max_size=12)
-    if t == "null":
-        return st.none()
-    if t == "array":
-        return st.lists(from_schema(s["items"]), max_size=5)
-    raise AssertionError(f"schema node {s}")
-
 
 JSON = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8)

@@ -29,6 +29,8 @@ from veriloc_rt.cli import main
 from veriloc_rt.config import config_schema
 from veriloc_rt.config.world import MAX_POINTS
 
+from .schema_strategies import from_schema
+
 ROOT = Path(__file__).resolve().parents[2]
 CI_TINY = ROOT / "configs" / "ci-tiny.json"
 UMA = ROOT / "configs" / "uma-default.json"
@@ -67,36 +69,6 @@ def no_propagation():
 
 # --- strategies --------------------------------------------------------------------------------
 
-def _schema_values(s: dict) -> st.SearchStrategy:
-    """Values valid for one node of the JSON schema (as test_bad_inputs_properties.from_schema,
-    kept small: these configs reach geometry building)."""
-    if "enum" in s:
-        return st.sampled_from(s["enum"])
-    if "anyOf" in s:
-        bounds = {k: v for k, v in s.items() if k in ("minimum", "exclusiveMinimum", "maximum")}
-        return st.one_of([_schema_values({**x, **bounds} if x["type"] in ("number", "integer")
-                                         else x) for x in s["anyOf"]])
-    t = s["type"]
-    if t == "object":
-        return st.fixed_dictionaries({}, optional={k: _schema_values(v)
-                                                   for k, v in s["properties"].items()})
-    if t == "integer":
-        return st.integers(s.get("minimum"), s.get("maximum"))
-    if t == "number":
-        lo = s.get("minimum", s.get("exclusiveMinimum"))
-        return st.floats(lo, s.get("maximum"), exclude_min="exclusiveMinimum" in s,
-                         allow_nan=False, allow_infinity=False)
-    if t == "boolean":
-        return st.booleans()
-    if t == "string":
-        return st.text(max_size=8)
-    if t == "null":
-        return st.none()
-    if t == "array":
-        return st.lists(_schema_values(s["items"]), max_size=4)
-    raise AssertionError(f"schema node {s}")
-
-
 JUNK = st.sampled_from([None, True, -1, 0, 2**63, 10**400, 1e308, -0.0, "", "\x00", "x",
                         [], {}, {"unknown": 1}])
 
@@ -106,7 +78,7 @@ def tiny_config(draw) -> dict:
     """TINY with a few sections generated from the schema, and maybe one value replaced."""
     cfg = json.loads(json.dumps(TINY))
     for name in draw(st.lists(st.sampled_from(SECTIONS), max_size=2, unique=True)):
-        cfg[name] = draw(_schema_values(SCHEMA["properties"][name]))
+        cfg[name] = draw(from_schema(SCHEMA["properties"][name], text_size=8, list_size=4))
     if draw(st.booleans()):
         section = draw(st.sampled_from(sorted(cfg)))
         if isinstance(cfg[section], dict) and cfg[section]:
