@@ -6,8 +6,9 @@ level of every knob of its group at once, except for the ray-tracing group of th
 whose reference is the converged setting :data:`RAYTRACE_REFERENCE` (with the largest crop
 margin):
 
-* ray tracing (group ``raytrace``): rays per source, maximum depth, diffraction, scene crop
-  margin. Cost: tracing seconds per serving link. Deviation from the reference, per link: the
+* ray tracing (group ``raytrace``): rays per source, maximum depth, diffraction, the edge
+  candidates and their plane distance, scene crop margin, and diffuse scattering (a model
+  choice: swept, but kept out of the reference, :data:`MODEL_KNOBS`). Cost: tracing seconds per serving link. Deviation from the reference, per link: the
   received power (dB), whether the strongest reference path is found, the first path's delay
   (m), its power relative to the strongest path and its azimuth of arrival (deg), the share of
   links whose path presence differs, and, through the config's chain on the same noise, the DL
@@ -80,6 +81,8 @@ KNOBS = (
          ("sampled", "exhaustive", "both")),
     Knob("raytrace", "candidate_plane_distance_m", "propagation.raytrace.candidate_plane_distance_m",
          (20.0, 30.0, 40.0)),
+    Knob("raytrace", "scattering_coefficient", "propagation.raytrace.materials.scattering_coefficient",
+         (0.0, 0.3)),
     Knob("raytrace", "margin_m", "scene.margin_m", (60.0, 150.0, 200.0, 300.0, 450.0)),
     Knob("waveform", "sample_rate_hz", "nr.sample_rate_hz", (None, 30.72e6, 61.44e6, 122.88e6)),
     Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
@@ -143,6 +146,14 @@ RAYTRACE_REFERENCE = {"propagation.raytrace.rays_per_source": 10_000_000,
                       "propagation.raytrace.max_depth": 4,
                       "propagation.raytrace.edge_candidates": "both",
                       "propagation.raytrace.work_per_call": 120_000_000}
+#: knobs that change the modelled physics rather than how closely it is computed: swept (their
+#: cost and how far they move the channel and the chain), but the reference keeps the config's
+#: own value. Diffuse scattering (Sionna RT's effective-roughness model, S^2 of the reflected
+#: power scattered; docs/polarization.md) adds power a smooth-wall model does not have, so a
+#: reference with it would count every smooth setting as wrong
+MODEL_KNOBS = ("scattering_coefficient",)
+#: what a scattering setting adds: diffuse tracing (rejected with S = 0)
+DIFFUSE_PATCH = {"propagation.raytrace.diffuse_reflection": True}
 QUICK_LEVELS = {
     "rays_per_source": (1_000, 10_000, 200_000),
     "max_depth": (3, 4),
@@ -227,7 +238,7 @@ def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | N
     for g in groups:
         knobs = [k for k in KNOBS if k.group == g]
         levels = {k.name: (QUICK_LEVELS.get(k.name, k.levels) if quick else k.levels) for k in knobs}
-        ref_patch = {k.path: levels[k.name][-1] for k in knobs}
+        ref_patch = {k.path: levels[k.name][-1] for k in knobs if k.name not in MODEL_KNOBS}
         if g == "waveform":
             # the time domain applies the paths at f_s / 8 after an ideal low-pass: exact inside
             # the band (tests/unit/test_channel.py) and ~8x cheaper with hundreds of paths
@@ -244,6 +255,8 @@ def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | N
                 patch = {k.path: v}
                 if k.name == "domain" and v == "time":
                     patch.update(TIME_DOMAIN_PATCH)
+                if k.name == "scattering_coefficient" and v > 0:
+                    patch.update(DIFFUSE_PATCH)
                 out.append(Setting(g, k.name, v, patch))
         if g == "waveform":
             out.append(Setting(g, "noise seed", "other", {}, role="noise floor"))

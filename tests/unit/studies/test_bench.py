@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from veriloc_rt.studies.bench import KNOBS, QUICK_LEVELS, pareto_front, sweep_settings
+from veriloc_rt.studies.bench import KNOBS, MODEL_KNOBS, QUICK_LEVELS, pareto_front, sweep_settings
 from veriloc_rt.config import config_from_dict
 
 
@@ -33,7 +33,8 @@ def test_sweep_settings_raytrace_quick():
         assert roles.count("config") == 1 and roles.count("reference") == 1
         ref = next(x for x in s if x.group == g and x.role == "reference")
         for k in KNOBS:
-            if k.group == g:   # the reference is the highest level of every knob
+            # the reference is the highest level of every knob that computes the same physics
+            if k.group == g and k.name not in MODEL_KNOBS:
                 assert ref.patch[k.path] == QUICK_LEVELS.get(k.name, k.levels)[-1]
     # the config's own value is not swept again (1000 rays, depth 4, diffraction on,
     # exhaustive edge candidates)
@@ -196,3 +197,21 @@ def test_every_setting_of_a_sweep_has_its_own_key(quick):
     settings = sweep_settings(config_from_dict({}), quick=quick)
     keys = [s.key for s in settings]
     assert len(keys) > 10 and len(set(keys)) == len(keys)
+
+
+def test_diffuse_scattering_is_swept_but_not_in_the_reference():
+    """Scattering changes the modelled physics: its setting traces diffusely (S > 0 without
+    diffuse tracing would only dim the specular paths), and the reference stays smooth."""
+    from veriloc_rt.studies.bench import MODEL_KNOBS
+
+    settings = sweep_settings(config_from_dict({}))
+    ref = next(x for x in settings if x.group == "raytrace" and x.role == "reference")
+    path = "propagation.raytrace.materials.scattering_coefficient"
+    assert "scattering_coefficient" in MODEL_KNOBS and path not in ref.patch
+    rough = [x for x in settings if x.knob == "scattering_coefficient"]
+    assert [x.value for x in rough] == [0.3]
+    assert rough[0].patch == {path: 0.3, "propagation.raytrace.diffuse_reflection": True}
+    # the patched config is valid (diffuse tracing with S = 0 is rejected)
+    from veriloc_rt.studies.bench import patched_config
+    c = patched_config(config_from_dict({}), rough[0].patch)
+    assert c.propagation.raytrace.diffuse_reflection and c.propagation.raytrace.materials.scattering_coefficient == 0.3
