@@ -210,7 +210,8 @@ def test_diffuse_scattering_is_swept_but_not_in_the_reference():
     assert "scattering_coefficient" in MODEL_KNOBS and path not in ref.patch
     rough = [x for x in settings if x.knob == "scattering_coefficient"]
     assert [x.value for x in rough] == [0.3]
-    assert rough[0].patch == {path: 0.3, "propagation.raytrace.diffuse_reflection": True}
+    assert rough[0].patch == {path: 0.3, "propagation.raytrace.diffuse_reflection": True,
+                              "propagation.raytrace.rays_per_source": 50_000}
     # the patched config is valid (diffuse tracing with S = 0 is rejected)
     from veriloc_rt.studies.bench import patched_config
     c = patched_config(config_from_dict({}), rough[0].patch)
