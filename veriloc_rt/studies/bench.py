@@ -52,6 +52,12 @@ from ..config import Config, config_from_dict, config_to_dict
 from ..constants import SPEED_OF_LIGHT
 from ..fileio import atomic_output, atomic_write_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
+from ..propagation import link_metrics as lm
+from ..world.geometry import build_geometry
+from ..propagation.raytrace import trace
+from ..sim.run_folder import run_keys
+from ..propagation.stochastic import uma_propagation
+from ..report.plots import plot_pareto
 
 log = logging.getLogger(__name__)
 
@@ -324,7 +330,6 @@ def channel_deviation(cir, ref_cir, points: np.ndarray) -> dict:
       (``first_rel_power_absdev_db_p90``);
     * first-path AoA deviation, share of links whose path presence differs.
     """
-    from ..propagation import link_metrics as lm
 
     tau, az = _first_path(cir, points)
     tau_r, az_r = _first_path(ref_cir, points)
@@ -351,8 +356,6 @@ def channel_deviation(cir, ref_cir, points: np.ndarray) -> dict:
 
 
 def _geometry(cfg: Config, scene_root: Path):
-    from ..world.geometry import build_geometry
-
     key = f"margin_{cfg.scene.margin_m:g}"
     return build_geometry(cfg, scene_root / key)
 
@@ -362,7 +365,6 @@ def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
     warm cost per link: the fastest of ``repeats`` identical traces (the first of a setting also
     compiles its Dr.Jit kernels and, in a new process, starts the LLVM back end,
     docs/performance.md; the trace is deterministic, so every repeat gives the same CIRs)."""
-    from ..propagation.raytrace import trace
 
     p = geometry.num_points
     on = np.zeros(p, dtype=bool)
@@ -383,8 +385,6 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     :param points: trajectory points evaluated (default: 6 with ``quick``, else 40; at most the
         config's trajectory)
     """
-    from ..sim.run_folder import run_keys
-    from ..propagation.stochastic import uma_propagation
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -578,8 +578,6 @@ def markdown_table(res: BenchResult) -> str:
 def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
     """bench.csv, bench.json, bench.md and bench_pareto.png in ``out_dir``; returns the paths."""
     import csv
-
-    from ..report.plots import plot_pareto
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

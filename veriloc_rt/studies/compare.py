@@ -33,6 +33,11 @@ from ..config import Config
 from ..fileio import atomic_output, atomic_write_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles
 from ..report.propagation_summary import rms_delay_spread
+from ..propagation.uma_params import lsp_statistics
+from ..sim.engine import run
+from ..sim.run_folder import run_keys
+from ..detectors.outcomes import DETECTORS, OUTCOMES
+from ..report.plots import plot_comparison_cdfs, plot_comparison_detectors
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +103,6 @@ def channel_statistics(cir) -> dict:
 
 def uma_reference_statistics(fc_hz: float, d_2d_m: float = 200.0, h_ut_m: float = 1.5) -> dict:
     """TR 38.901 Table 7.5-6 UMa medians (10^mu of the lg parameters; K in dB), LoS and NLoS."""
-    from ..propagation.uma_params import lsp_statistics
 
     out = {}
     for los in (True, False):
@@ -128,9 +132,6 @@ def run_compare(cfg: Config, out_dir: str | Path, progress: Progress | None = No
                 workers: int = 1) -> ComparisonResult:
     """Run ``cfg`` on ray tracing and on UMa and compare (see the module docstring)."""
     import time
-
-    from ..sim.engine import run
-    from ..sim.run_folder import run_keys
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -166,8 +167,6 @@ def _f(v, nd=1) -> str:
 
 
 def markdown(res: ComparisonResult) -> str:
-    from ..detectors.outcomes import DETECTORS, OUTCOMES
-
     ch, er, dt = res.channel, res.errors, res.detectors
     tab = ch["uma_table"]
     L = ["## Channel of the serving links", "",
@@ -211,8 +210,6 @@ def format_comparison(res: ComparisonResult) -> str:
 
 
 def _write(res: ComparisonResult, cfg: Config) -> None:
-    from ..report.plots import plot_comparison_cdfs, plot_comparison_detectors
-
     out = res.out_dir
     # every file through a temporary file renamed over it: a stopped compare leaves no half file
     atomic_write_text(

@@ -36,6 +36,12 @@ from .diagnostics import finite_percentiles
 from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text
 from ..propagation import pathloss_models as plm
+from ..propagation.uma_params import uma_table
+from ..propagation.uma import uma_pathloss_db
+from ..propagation.raytrace import trace
+from ..sim.checks import check_materials
+from ..world.geometry import build_geometry
+from ..report.validation_plot import plot_validation_pathloss
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +65,6 @@ BIN_WIDTH_M = 50.0
 def sigma_sf_db(name: str) -> float:
     """NLOS shadow-fading standard deviation of a statistical model (TR 38.901 Table 7.4.1-1,
     from the shipped tables): an offset within +-sigma is inside the model's own spread."""
-    from ..propagation.uma_params import uma_table
 
     tab = uma_table() if name == "uma_nlos" else plm.umi_table()
     return float(tab["pathloss"]["sigma_sf_db"]["nlos"])
@@ -177,7 +182,6 @@ def model_db(name: str, d_2d, phi, covered, fc: float, geo: plm.RooftopGeometry)
         return plm.p1411_nlos_db(d_2d, fc, geo, phi, ell)
     if name == "cost231_wi":
         return plm.cost231_wi_nlos_db(d_2d, fc, geo, phi)
-    from ..propagation.uma import uma_pathloss_db
 
     f = uma_pathloss_db if name == "uma_nlos" else plm.umi_pathloss_db
     return f(d_2d, geo.h_bs_m, geo.h_ue_m, fc, False)
@@ -225,9 +229,6 @@ def run_validate(cfg: Config, out_dir: str | Path | None = None, progress: Progr
     :param out_dir: where the files go (None: nothing written; the scene then goes to
         ``.veriloc-scene``)
     """
-    from ..propagation.raytrace import trace
-    from ..sim.checks import check_materials
-    from ..world.geometry import build_geometry
 
     if not np.isfinite(bin_width_m) or bin_width_m <= 0:
         raise ValueError(f"Argument `bin_width_m` must be > 0, not {bin_width_m!r}")
@@ -373,7 +374,6 @@ def format_validation(res: ValidationResult) -> str:
 
 def write_validation(res: ValidationResult) -> dict:
     """validation.json, validation.md, validation_links.csv, validation_pathloss.png."""
-    from ..report.validation_plot import plot_validation_pathloss
 
     out = res.out_dir
     out.mkdir(parents=True, exist_ok=True)
