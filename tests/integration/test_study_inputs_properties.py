@@ -61,9 +61,11 @@ def _reached(*args, **kwargs):
 def no_propagation():
     """Every way the three commands compute propagation ends at the sentinel."""
     with pytest.MonkeyPatch.context() as mp:
+        # the names as the commands' modules hold them
         mp.setattr("veriloc_rt.sim.engine.compute_propagation", _reached)       # compare
-        mp.setattr("veriloc_rt.propagation.raytrace.trace", _reached)           # bench, validate
-        mp.setattr("veriloc_rt.propagation.stochastic.uma_propagation", _reached)   # bench
+        mp.setattr("veriloc_rt.studies.bench.trace", _reached)
+        mp.setattr("veriloc_rt.studies.bench.uma_propagation", _reached)
+        mp.setattr("veriloc_rt.studies.validate.trace", _reached)
         yield
 
 
