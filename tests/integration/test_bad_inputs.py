@@ -215,12 +215,19 @@ def test_damaged_ply(tmp_path, case):
 
 
 
-def test_unknown_material(tmp_path):
+def check_edited_scene_xml(tmp_path, old: str, new: str) -> str:
+    """`config check` on the external test scene with ``old`` replaced by ``new`` in its XML;
+    the one error line (about ``scene.source``)."""
     scene = external_scene(tmp_path)
     xml = scene / "scene.xml"
-    xml.write_text(xml.read_text().replace('value="concrete"', 'value="unobtainium"'))
+    xml.write_text(xml.read_text().replace(old, new))
     code, _, err = check(tmp_path, external_config(tmp_path, scene))
-    assert "unknown ITU material" in assert_one_line(code, err, "scene.source")
+    return assert_one_line(code, err, "scene.source")
+
+
+def test_unknown_material(tmp_path):
+    line = check_edited_scene_xml(tmp_path, 'value="concrete"', 'value="unobtainium"')
+    assert "unknown ITU material" in line
 
 
 def test_canyon_material_undefined_at_the_carrier(tmp_path):
@@ -500,11 +507,8 @@ def test_key_file_of_another_bs(tmp_path):
 
 
 def test_mesh_path_escaping_the_scene_folder(tmp_path):
-    scene = external_scene(tmp_path)
-    xml = scene / "scene.xml"
-    xml.write_text(xml.read_text().replace("meshes/ground.ply", "../../../../etc/passwd"))
-    code, _, err = check(tmp_path, external_config(tmp_path, scene))
-    assert "outside the scene's folder" in assert_one_line(code, err, "scene.source")
+    line = check_edited_scene_xml(tmp_path, "meshes/ground.ply", "../../../../etc/passwd")
+    assert "outside the scene's folder" in line
 
 
 def test_no_bs_reaching_the_ue_warns(caplog):

@@ -24,6 +24,8 @@ past the draws (:class:`veriloc_rt.phy.chain.downlink.DownlinkChannel`).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 from .channel import add_noise
@@ -33,12 +35,13 @@ from .nr.prs import SYMBOLS_PER_SLOT
 __all__ = ["GridNoise", "NoiseSource", "WhiteNoise"]
 
 
-class NoiseSource:
-    """Adds a receiver's thermal noise (the base of :class:`WhiteNoise` and :class:`GridNoise`)."""
+class NoiseSource(ABC):
+    """Adds a receiver's thermal noise: the interface of :class:`WhiteNoise` and :class:`GridNoise`."""
 
     #: the draws depend only on the generator passed to the call
     follows_call_rng: bool = True
 
+    @abstractmethod
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
         """``x`` plus noise of ``variance`` per sample (a new complex128 array).
 
@@ -46,7 +49,6 @@ class NoiseSource:
         :param variance: float, W per sample and RE (0: no noise, ``x`` copied)
         :param rng: the call's generator
         """
-        raise NotImplementedError
 
 
 class WhiteNoise(NoiseSource):
