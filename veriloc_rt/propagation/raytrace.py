@@ -38,7 +38,9 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import multiprocessing
 import os
+import signal
 import time
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -75,6 +77,10 @@ MAX_PAIRS_PER_CALL = 256
 #: Share of a call's traced pairs that must be wanted when the unwanted ones are dropped before
 #: refinement (their cost is the visibility tests of the shared rays)
 MIN_EFFICIENCY_FILTERED = 1 / 8
+
+#: Uncached links a trace needs before it is spread over several processes: each process
+#: imports Sionna RT and loads the scene first, seconds that only a longer job recovers
+PARALLEL_MIN_LINKS = 300
 
 Progress = Callable[[int, int], None]
 
@@ -195,10 +201,13 @@ class LinkTracer:
         return h.hexdigest()[:32]
 
     def trace(self, src: np.ndarray, dst: np.ndarray, rays: int,
-              progress: Progress | None = None) -> RawPaths:
+              progress: Progress | None = None, workers: int = 1) -> RawPaths:
         """Paths from ``src[i]`` (Sionna source) to ``dst[i]`` (Sionna target) for every i.
 
         :param src, dst: [num_links, 3] float64, m
+        :param workers: processes tracing the calls the cache does not hold, when they hold at
+            least PARALLEL_MIN_LINKS links (each call's result depends only on its own inputs,
+            so the result is the same for any number)
         :returns: RawPaths with one row per link, in Sionna's source -> target orientation
         """
         if len(src) == 0:   # nothing to trace (e.g. an adversary that is never active)
@@ -220,38 +229,106 @@ class LinkTracer:
         results: list[RawPaths | None] = [None] * len(pair_first)
         done = 0
         total = len(pair_first)
+
+        def finish(links: np.ndarray, raw: RawPaths) -> None:
+            nonlocal done
+            for j, li in enumerate(links):
+                results[li] = _row(raw, j)
+            done += len(links)
+            if progress:
+                progress(round(done * len(src) / total), len(src))
+
+        todo = []
         for call in calls:
             links = order[call]
             cs, cs_inv = np.unique(u_src[links], return_inverse=True)
             cd, cd_inv = np.unique(u_dst[links], return_inverse=True)
             pairs = np.stack([cs_inv.ravel(), cd_inv.ravel()], axis=1)
             s_pos, d_pos = src[src_first[cs]], dst[dst_first[cd]]
-            raw = self._call(s_pos, d_pos, pairs, rays)
-            for j, li in enumerate(links):
-                results[li] = _row(raw, j)
-            done += len(links)
-            if progress:
-                progress(round(done * len(src) / total), len(src))
+            key = self.call_key(s_pos, d_pos, pairs, rays) if self.cache_dir else None
+            cached = self._cached(key, len(pairs))
+            if cached is not None:
+                finish(links, cached)
+            else:
+                todo.append((links, s_pos, d_pos, pairs, key))
+        procs = min(workers, len(todo)) \
+            if sum(len(t[3]) for t in todo) >= PARALLEL_MIN_LINKS else 1
+        self.stats["processes"] = max(procs, self.stats.get("processes", 1))
+        jobs = [(s_pos, d_pos, pairs, rays) for _, s_pos, d_pos, pairs, _ in todo]
+        computed = (_trace_in_processes(self, jobs, procs) if procs > 1
+                    else ((k, *self._compute(*job)) for k, job in enumerate(jobs)))
+        for k, raw, seconds in computed:
+            links, _, _, pairs, key = todo[k]
+            self.stats["trace_s"] += seconds
+            self.stats["calls"] += 1
+            self.stats["links_traced"] += len(pairs)
+            if key:
+                write_cache_entry(self.cache_dir / f"{key}.npz", key, raw)
+            finish(links, raw)
         merged = RawPaths.concat(results) if results else None
         return _take(merged, pair_inv)
 
-    def _call(self, s_pos: np.ndarray, d_pos: np.ndarray, pairs: np.ndarray, rays: int) -> RawPaths:
-        key = self.call_key(s_pos, d_pos, pairs, rays) if self.cache_dir else None
-        if key:
-            cached = read_cache_entry(self.cache_dir / f"{key}.npz", key, len(pairs))
-            if cached is not None:
-                self.stats["cache_hits"] += 1
-                return cached
+    def _cached(self, key: str | None, num_links: int) -> RawPaths | None:
+        """The cache's result of a call (None: no cache, or not in it)."""
+        if not key:
+            return None
+        cached = read_cache_entry(self.cache_dir / f"{key}.npz", key, num_links)
+        if cached is not None:
+            self.stats["cache_hits"] += 1
+        return cached
+
+    def _compute(self, s_pos: np.ndarray, d_pos: np.ndarray, pairs: np.ndarray,
+                 rays: int) -> tuple[RawPaths, float]:
+        """One PathSolver call, traced here. -> (paths, seconds)"""
         t0 = time.perf_counter()
         tracer = self.sionna_tracer()
         tracer.max_paths_per_src = min(self.fid.max_candidates_per_source * len(d_pos), 10**6)
         raw = tracer.trace(s_pos, d_pos, self.fid, rays, pairs=pairs)
-        self.stats["trace_s"] += time.perf_counter() - t0
-        self.stats["calls"] += 1
-        self.stats["links_traced"] += len(pairs)
-        if key:
-            write_cache_entry(self.cache_dir / f"{key}.npz", key, raw)
-        return raw
+        return raw, time.perf_counter() - t0
+
+
+#: The LinkTracer of a tracing process (:func:`_trace_in_processes`)
+_PROCESS_TRACER: LinkTracer | None = None
+
+
+def _start_tracing_process(scene_xml: str, fc: float, fid: RayTracingConfig, seed: int,
+                           threads: int) -> None:
+    """Initializer of a tracing process: its own tracer (no cache: the parent writes it), its
+    share of the cores for Dr.Jit, and Ctrl-C left to the parent (which terminates it)."""
+    global _PROCESS_TRACER
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from ..backend import import_sionna
+    import_sionna()
+    import drjit as dr
+    dr.set_thread_count(threads)
+    _PROCESS_TRACER = LinkTracer(scene_xml, fc, fid, seed, cache_dir=None)
+
+
+def _trace_job(job: tuple) -> tuple:
+    k, args = job
+    return (k, *_PROCESS_TRACER._compute(*args))
+
+
+def _trace_in_processes(tracer: LinkTracer, jobs: list[tuple], procs: int):
+    """Yield (job index, paths, seconds) of PathSolver calls ``jobs`` (their
+    :meth:`LinkTracer._compute` arguments), traced by ``procs`` new processes, as they finish.
+
+    The processes are spawned, not forked (a fork would copy Dr.Jit's threads and LLVM state),
+    each loads the scene once; they are terminated if the caller stops (Ctrl-C, an error).
+    """
+    threads = max(1, (os.cpu_count() or 1) // procs)
+    log.info("ray tracing: %d calls in %d processes", len(jobs), procs)
+    pool = multiprocessing.get_context("spawn").Pool(
+        procs, initializer=_start_tracing_process,
+        initargs=(str(tracer.scene_xml), tracer.fc, tracer.fid, tracer.seed, threads))
+    try:
+        yield from pool.imap_unordered(_trace_job, list(enumerate(jobs)))
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
 
 
 def entry_checksum(key: str, arrays: dict[str, np.ndarray]) -> np.ndarray:
@@ -357,7 +434,7 @@ def _take(raw: RawPaths, idx: np.ndarray) -> RawPaths:
 
 
 def trace_links(tracer: LinkTracer, tx: np.ndarray, rx: np.ndarray, reciprocal: bool,
-                rays: int, progress: Progress | None = None) -> RawPaths:
+                rays: int, progress: Progress | None = None, workers: int = 1) -> RawPaths:
     """Physical tx -> rx links; with ``reciprocal`` the rays start at the receiver.
 
     :returns: RawPaths in the physical orientation: ``theta_r/phi_r`` at the receiver,
@@ -365,8 +442,8 @@ def trace_links(tracer: LinkTracer, tx: np.ndarray, rx: np.ndarray, reciprocal: 
         (reversed paths: the transposed polarimetric matrix, Lorentz reciprocity)
     """
     if not reciprocal:
-        return tracer.trace(tx, rx, rays, progress)
-    rev = tracer.trace(rx, tx, rays, progress)
+        return tracer.trace(tx, rx, rays, progress, workers)
+    rev = tracer.trace(rx, tx, rays, progress, workers)
     return RawPaths(tau=rev.tau, a=np.swapaxes(rev.a, 2, 3), theta_r=rev.theta_t, phi_r=rev.phi_t,
                     theta_t=rev.theta_r, phi_t=rev.phi_r,
                     interactions=_reverse_interactions(rev.interactions), valid=rev.valid)
@@ -423,7 +500,7 @@ def build_cir(raw: RawPaths, shape: tuple[int, int], tx_index: np.ndarray, tx_po
 def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None = None,
           cache_dir: str | Path | None = "default",
           adversary_points: np.ndarray | None = None,
-          ue_points: np.ndarray | None = None) -> Propagation:
+          ue_points: np.ndarray | None = None, workers: int = 1) -> Propagation:
     """Ray-trace every link of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
 
     :param adversary_points: [num_points] bool, points at which the adversary transmits or
@@ -433,6 +510,7 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
 
     :param cache_dir: "default" uses ``cfg.raytrace.cache_dir``; None disables the cache
     :param progress: called as ``progress(links_done, links_total)``
+    :param workers: tracing processes for a long job (:meth:`LinkTracer.trace`)
     """
     fid = cfg.raytrace
     if cache_dir == "default":
@@ -466,7 +544,7 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     total = len(tx_links)
     cb = (lambda done, _n: progress(done, total)) if progress else None
     t0 = time.perf_counter()
-    raw = trace_links(tracer, tx_links, rx_links, recip, fid.rays_per_source, cb)
+    raw = trace_links(tracer, tx_links, rx_links, recip, fid.rays_per_source, cb, workers)
     # antenna polarizations in the physical direction (receiver port, transmitter port)
     pol = fid.polarization
     bs_p, ue_p, adv_p = pol.bs, pol.ue, pol.adversary_polarization()

@@ -38,16 +38,19 @@ _OUTCOME_COLOURS = {"success": (0.0, 0.6, 0.0), "large_error": (1.0, 0.3, 0.3),
 
 
 @contextmanager
-def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), ncols: int = 1, **kw):
+def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), ncols: int = 1,
+           layout: str | None = "constrained", **kw):
     """Yield ``(fig, axes)`` on the Agg backend; on a clean exit add ``title``, save, log.
 
-    The figure is closed in every case. ``kw`` goes to ``plt.subplots``.
+    The figure is closed in every case. ``layout`` and ``kw`` go to ``plt.subplots`` (a figure
+    whose labels are known in advance sets fixed margins instead: the constrained layout
+    measures every tick label, which costs as much as drawing the figure).
     """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(nrows, ncols, figsize=figsize, dpi=110, layout="constrained", **kw)
+    fig, axes = plt.subplots(nrows, ncols, figsize=figsize, dpi=110, layout=layout, **kw)
     try:
         yield fig, axes
         if title:
@@ -237,8 +240,11 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
     x = idx.astype(float) + 1.0
     err = np.maximum(err.astype(float), 1e-2)  # log axis: a zero error sits at 1 cm
     path = Path(path)
-    with figure(path, title, nrows=6, figsize=(10.0, 9.0), sharex=True,
-                 height_ratios=[1] * 5 + [1.6]) as (_, axes):
+    with figure(path, title, nrows=6, figsize=(10.0, 9.0), sharex=True, layout=None,
+                height_ratios=[1] * 5 + [1.6]) as (fig, axes):
+        # fixed margins: the labels are the same on every run ("Invalid", "error [m]", ...)
+        fig.subplots_adjust(left=0.09, right=0.985, bottom=0.06,
+                            top=0.95 if title else 0.985, hspace=0.12)
         for ax, det, y in zip(axes, DETECTORS, dets):
             label, colour = _DETECTOR_STYLE[det]
             ax.step(x, y.astype(float), where="post", color=colour, lw=1.8)

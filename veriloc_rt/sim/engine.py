@@ -70,8 +70,10 @@ class Results:
 
 
 def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | None = None,
-                        cache_dir: str | Path | None = "default") -> Propagation:
-    """CIRs of every link, from the configured model.
+                        cache_dir: str | Path | None = "default",
+                        workers: int = 1) -> Propagation:
+    """CIRs of every link, from the configured model (ray tracing in up to ``workers``
+    processes).
 
     Ray tracing traces the adversary's links (BS -> adversary, adversary -> UE) only where the
     run uses them, the attack window of an attack scenario: the adversary -> UE links are
@@ -84,7 +86,7 @@ def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | No
     window = cfg.run.attack_points(geometry.num_points) & attacks
     cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None
     return trace(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
-                 adversary_points=window)
+                 adversary_points=window, workers=workers)
 
 
 def propagation_summary(geometry: Geometry, prop: Propagation) -> dict:
@@ -168,7 +170,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
         if not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
             plot_top_view(geometry, out / "scene_top_view.png")
     t1 = time.perf_counter()
-    prop = compute_propagation(cfg, geometry, progress)
+    prop = compute_propagation(cfg, geometry, progress, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
     warn_unreachable(prop.bs_ue.has_path())
     summary = propagation_summary(geometry, prop)

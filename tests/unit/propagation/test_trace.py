@@ -111,6 +111,34 @@ def test_a_links_paths_do_not_depend_on_the_other_links_traced(tmp_path, edge_ca
 
 
 @pytest.mark.raytrace
+def test_tracing_in_processes_gives_the_serial_result(tmp_path, monkeypatch):
+    """Calls spread over two spawned tracing processes: every array and every cache entry is
+    bit-identical to the serial trace's (each call's result depends only on its inputs), and
+    the calls are the same ones."""
+    import veriloc_rt.propagation.raytrace as rtmod
+
+    # the schema's smallest calls: 16 pairs (max_depth x rays = 6000 each), so there are several
+    fid = TINY["propagation"]["raytrace"]
+    cfg = config_from_dict(TINY | {"propagation": {"raytrace": fid | {"work_per_call": 100_000}}})
+    geo = build_geometry(cfg, tmp_path / "scene")
+    serial = trace(geo, cfg.propagation, cfg.seed, cache_dir=tmp_path / "c1")
+    monkeypatch.setattr(rtmod, "PARALLEL_MIN_LINKS", 0)   # the tiny job is spread too
+    par = trace(geo, cfg.propagation, cfg.seed, cache_dir=tmp_path / "c2", workers=2)
+    assert serial.stats["processes"] == 1 and par.stats["processes"] == 2
+    assert par.stats["calls"] == serial.stats["calls"] > 1
+    for name in ("bs_ue", "bs_adv", "adv_ue"):
+        x, y = getattr(serial, name), getattr(par, name)
+        for f in ("delays", "gains", "doppler", "valid", "aoa_az", "interactions"):
+            assert np.array_equal(getattr(x, f), getattr(y, f)), (name, f)
+    entries = sorted(p.name for p in (tmp_path / "c1" / "raytrace").glob("*.npz"))
+    assert entries == sorted(p.name for p in (tmp_path / "c2" / "raytrace").glob("*.npz"))
+    for e in entries:
+        a, b = (np.load(tmp_path / c / "raytrace" / e) for c in ("c1", "c2"))
+        with a, b:
+            assert all(np.array_equal(a[k], b[k]) for k in a.files)
+
+
+@pytest.mark.raytrace
 def test_doppler_matches_sionna(tmp_path):
     """Our Doppler from arrival/departure angles and velocities vs Sionna's own (moving tx and
     rx over ground: LoS and reflection). Sionna's is float32: 1e-3 Hz at ~50 Hz shifts."""
