@@ -112,7 +112,9 @@ class ResultsTail:
 
 
 class RateMeter:
-    """Points per second over the last :data:`RATE_WINDOW_S` of observations."""
+    """Points per second, measured from the latest observation at least ``window_s`` old (or
+    the oldest one kept) to now. Observations of no point yet are not kept: the time a run
+    spends before its first point (geometry, propagation) is not point time."""
 
     def __init__(self, window_s: float = RATE_WINDOW_S):
         self.window_s = window_s
@@ -121,6 +123,8 @@ class RateMeter:
     def observe(self, wall_s: float, done: int) -> None:
         if self._seen and done < self._seen[-1][1]:   # a new run started over
             self._seen.clear()
+        if done == 0:
+            return
         if not self._seen or done != self._seen[-1][1]:
             self._seen.append((wall_s, done))
         while len(self._seen) > 2 and wall_s - self._seen[1][0] > self.window_s:

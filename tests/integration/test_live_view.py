@@ -1,0 +1,99 @@
+"""The live view's JSON on a finished run folder: progress complete, the shares equal to the
+run's metrics.json (and to a count of the CSV's outcomes), the map's layer, the HTTP routes."""
+
+from __future__ import annotations
+
+import csv
+import json
+import urllib.error
+import urllib.request
+
+import pytest
+
+from veriloc_rt.cli import main
+from veriloc_rt.detectors.outcomes import OUTCOMES
+from veriloc_rt.sim.live.server import LiveServer
+from veriloc_rt.sim.live.state import RunFolderState
+
+#: a tiny UMa run: two scenarios, no encrypted-PRS pass, DigSig from the HMAC chain's checks
+TINY = {"propagation": {"model": "uma"}, "trajectory": {"num_points": 8, "adversary_lag_points": 2},
+        "run": {"scenarios": ["none", "fbs"], "evaluate_encrypted": False, "digsig": "shared"}}
+#: shares are ratios of small counts; the JSON round trip keeps floats exact
+EXACT = 1e-12
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    d = tmp_path_factory.mktemp("live")
+    cfg = d / "c.json"
+    cfg.write_text(json.dumps(TINY))
+    assert main(["run", str(cfg), "--out", str(d / "r"), "--workers", "1"]) == 0
+    return d / "r"
+
+
+def test_state_of_a_finished_run_equals_its_metrics(finished):
+    metrics = json.loads((finished / "metrics.json").read_text())["scenarios"]
+    view = RunFolderState(finished)
+    st = json.loads(json.dumps(view.state("fbs")))
+    assert (st["status"], st["stage"], st["eta_s"]) == ("complete", "done", 0.0)
+    assert [s["name"] for s in st["scenarios"]] == ["none", "fbs"]
+    for s in st["scenarios"]:
+        assert (s["done"], s["total"], s["eta_s"]) == (8, 8, 0.0)
+        assert s["metrics"] == metrics[s["name"]]
+    # the benign shares counted from the CSV directly
+    with open(finished / "none_results.csv", newline="") as fh:
+        outcomes = [r["outcome"] for r in csv.DictReader(fh)]
+    none = st["scenarios"][0]["metrics"]["outcomes"]
+    for k in OUTCOMES:
+        assert none[k] == pytest.approx(100.0 * outcomes.count(k) / len(outcomes), abs=EXACT)
+    p = st["points"]
+    assert p["scenario"] == "fbs" and p["index"] == list(range(8))
+    window = [i for i, a in enumerate(p["attack"]) if a]
+    # run.attack_points: floor(0.25 * 8) = 2 up to floor(0.75 * 8) = 6
+    assert window == [2, 3, 4, 5]
+    view.wait_scene(60)
+    scene = view.scene()
+    summary = json.loads((finished / "propagation_summary.json").read_text())
+    assert scene["ready"] and scene["attack"] == [2, 6]
+    assert len(scene["bs"]) == summary["num_bs"] and len(scene["ue"]) == 8
+    assert len(scene["buildings"]) == summary["num_buildings"]
+    # the true positions of the map's layer are the run's (same seed, same geometry)
+    assert [xy for xy in zip(p["x_true"], p["y_true"])] == [tuple(u) for u in scene["ue"]]
+
+
+def _get(url: str):
+    with urllib.request.urlopen(url, timeout=30) as r:
+        return r.status, r.headers.get("Content-Type"), r.read()
+
+
+def test_http_routes(finished):
+    server = LiveServer(finished, port=0).start()
+    try:
+        base = server.url
+        status, ctype, body = _get(base + "api/state?scenario=none&from=6")
+        st = json.loads(body)
+        assert status == 200 and ctype.startswith("application/json")
+        assert st["points"]["from"] == 6 and st["points"]["index"] == [6, 7]
+        for page, marker in (("", b"decisions"), ("edit", b"Save and run")):
+            status, ctype, body = _get(base + page)
+            assert ctype.startswith("text/html") and marker in body
+        fields = json.loads(_get(base + "api/form")[2])["fields"]
+        assert any(f["path"] == "trajectory.num_points" for f in fields)
+        cfg = json.loads(_get(base + "api/config")[2])
+        assert cfg["config"]["trajectory"]["num_points"] == 8   # the run's own config
+        with pytest.raises(urllib.error.HTTPError) as e:
+            _get(base + "static/../state.py")
+        assert e.value.code == 404
+        e.value.close()
+        # a POST without the page's header is refused (another origin cannot add it)
+        req = urllib.request.Request(base + "api/validate", data=b'{"config": {}}',
+                                     headers={"Content-Type": "application/json"})
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(req, timeout=30)
+        assert e.value.code == 403
+        e.value.close()
+        req.add_header("X-Veriloc", "1")
+        with urllib.request.urlopen(req, timeout=30) as r:
+            assert json.loads(r.read()) == {"ok": True}
+    finally:
+        server.shutdown()
