@@ -229,6 +229,8 @@ class RunFolderState:
         self.clock = clock
         self._lock = threading.Lock()
         self._tails: dict[str, ResultsTail] = {}
+        #: per scenario ((generation, rows), scenario_metrics of those rows)
+        self._metrics: dict[str, tuple] = {}
         self._meter = RateMeter()
         self._config_text: str | None = None
         self._cfg = None
@@ -335,9 +337,11 @@ class RunFolderState:
                 rows_left += max((total or done) - done, 0)
                 eta = 0.0 if total is not None and done >= total else (
                     rows_left / rate if rate else None)
+                key = (tail.generation, done)
+                if self._metrics.get(name, (None,))[0] != key:   # only when rows were added
+                    self._metrics[name] = (key, scenario_metrics(tail.rows, name))
                 scen.append({"name": name, "done": done, "total": total, "eta_s": eta,
-                             "generation": tail.generation,
-                             "metrics": scenario_metrics(tail.rows, name)})
+                             "generation": tail.generation, "metrics": self._metrics[name][1]})
             out = {
                 "folder": str(self.folder), "status": status, "stage": stage,
                 "num_points": total, "scenarios": scen,

@@ -182,8 +182,8 @@ function drawMap() {
   path(ue, Math.min(cur + 1, ue.length), "#2a62c9", 2.5);
   // adversary: its path faint, its position now a marker (it transmits in the attack window)
   const adv = scene.adversary || [];
-  ctx.fillStyle = "rgba(142,68,173,0.35)";
-  for (let i = 0; i < adv.length; i += 2) { ctx.beginPath(); ctx.arc(X(adv[i][0]), Y(adv[i][1]), 1.6, 0, 7); ctx.fill(); }
+  ctx.fillStyle = "rgba(142,68,173,0.5)";
+  for (let i = 0; i < adv.length; i += 2) { ctx.beginPath(); ctx.arc(X(adv[i][0]), Y(adv[i][1]), 2, 0, 7); ctx.fill(); }
   // estimates coloured by outcome; no fix: a cross at the true position
   for (let i = 0; i < n; i++) {
     const o = p.outcome[i];
@@ -246,7 +246,7 @@ function renderDecisions(st) {
     ctx.clearRect(0, 0, w, h);
     const dx = w / total;
     if (attack) {
-      ctx.fillStyle = "rgba(214,69,69,0.13)";
+      ctx.fillStyle = "rgba(214,69,69,0.22)";
       ctx.fillRect(attack[0] * dx, 0, (attack[1] - attack[0]) * dx, h);
       ctx.strokeStyle = "rgba(214,69,69,0.7)"; ctx.lineWidth = 1;
       ctx.strokeRect(attack[0] * dx + 0.5, 0.5, (attack[1] - attack[0]) * dx - 1, h - 1);
@@ -254,7 +254,7 @@ function renderDecisions(st) {
     const v = p.verdicts[d] || [];
     for (let i = 0; i < v.length; i++) {
       ctx.fillStyle = v[i] ? "#2e9d55" : "#d64545";
-      ctx.fillRect(p.index[i] * dx, 4, Math.max(dx - (dx > 3 ? 1 : 0), 1), h - 8);
+      ctx.fillRect(p.index[i] * dx, 5, Math.max(dx - (dx > 3 ? 1 : 0), 1), h - 10);
     }
     row.dataset.points = String(v.length);
   }
