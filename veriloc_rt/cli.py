@@ -341,6 +341,8 @@ def _serve(server, args, page: str = "") -> int:
 def cmd_view(args) -> int:
     from .sim.live.server import LiveServer
 
+    if Path(args.dir).exists() and not Path(args.dir).is_dir():
+        raise InputError(args.dir, "not a folder (give a run's --out folder)")
     return _serve(LiveServer(args.dir, port=_port(args.port)), args)
 
 

@@ -97,3 +97,20 @@ def test_http_routes(finished):
             assert json.loads(r.read()) == {"ok": True}
     finally:
         server.shutdown()
+
+
+@pytest.mark.parametrize("args, line", [
+    (["run", "--port", "8000"], "error: --port: only with --live"),
+    (["run", "--no-browser"], "error: --no-browser: only with --live"),
+    (["view", "{tmp}", "--port", "70000"],
+     "error: --port: got 70000, expected 0..65535 (0: any free port)"),
+    (["view", "{tmp}/f.txt"], "error: {tmp}/f.txt: not a folder (give a run's --out folder)"),
+    (["edit", "{tmp}/bad.json"],
+     "error: trajectory.num_points: got 1, expected a value >= 2 and <= 10000"),
+])
+def test_bad_flags_of_the_live_commands_are_one_line(tmp_path, capsys, args, line):
+    (tmp_path / "f.txt").write_text("x")
+    (tmp_path / "bad.json").write_text(json.dumps({"trajectory": {"num_points": 1}}))
+    args = [a.format(tmp=tmp_path) for a in args]
+    assert main([*args, "--out", str(tmp_path / "o")] if args[0] == "run" else args) == 2
+    assert capsys.readouterr().err.strip() == line.format(tmp=tmp_path)
