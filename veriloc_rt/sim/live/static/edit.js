@@ -82,13 +82,19 @@ function configFromForm() {
 function show(res, okText) {
   const m = document.getElementById("message");
   document.querySelectorAll(".field.bad").forEach(e => e.classList.remove("bad"));
+  document.querySelectorAll(".field-error").forEach(e => e.remove());
   if (res.ok) { m.textContent = okText; m.className = "message ok"; return; }
   m.textContent = res.error; m.className = "message error";
   if (res.field) {
     // the error names the dotted field, maybe with a list index: trajectory.num_points, nr.prs_ids[1]
     const path = res.field.replace(/\[\d+\]$/, "");
     const inp = inputs[path];
-    if (inp) { inp.closest(".field").classList.add("bad"); inp.scrollIntoView({block: "center"}); }
+    if (inp) {
+      const row = inp.closest(".field");
+      row.classList.add("bad");
+      row.append(el("div", {class: "field-error", text: res.error}));
+      inp.scrollIntoView({block: "center"});
+    }
   }
 }
 

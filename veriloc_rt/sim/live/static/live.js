@@ -128,6 +128,10 @@ function select(name) {
   if (lastState) render(lastState);
 }
 
+// the map's view: fitted to the BSs and the trajectory, then zoomed (wheel) and panned (drag)
+// by the user; a double click fits it again
+const view = {zoom: 1, dx: 0, dy: 0};
+
 function mapTransform(w, h) {
   let xs = [], ys = [];
   for (const p of [...(scene.bs || []), ...(scene.ue || [])]) { xs.push(p[0]); ys.push(p[1]); }
@@ -135,9 +139,32 @@ function mapTransform(w, h) {
   const pad = 40;
   const x0 = Math.min(...xs) - pad, x1 = Math.max(...xs) + pad;
   const y0 = Math.min(...ys) - pad, y1 = Math.max(...ys) + pad;
-  const k = Math.min(w / (x1 - x0), h / (y1 - y0));
-  const ox = (w - k * (x1 - x0)) / 2, oy = (h - k * (y1 - y0)) / 2;
-  return {k, X: x => ox + k * (x - x0), Y: y => h - (oy + k * (y - y0))};
+  const k = view.zoom * Math.min(w / (x1 - x0), h / (y1 - y0));
+  const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
+  return {k, X: x => w / 2 + view.dx + k * (x - cx), Y: y => h / 2 + view.dy - k * (y - cy)};
+}
+
+function setupMapControls() {
+  const c = document.getElementById("map");
+  c.addEventListener("wheel", e => {
+    e.preventDefault();
+    const f = Math.exp(-e.deltaY * 0.0015);
+    const r = c.getBoundingClientRect();
+    const mx = e.clientX - r.left - r.width / 2, my = e.clientY - r.top - r.height / 2;
+    view.dx = mx - (mx - view.dx) * f; view.dy = my - (my - view.dy) * f;   // zoom about the cursor
+    view.zoom *= f;
+    drawMap();
+  }, {passive: false});
+  let drag = null;
+  c.addEventListener("mousedown", e => { drag = {x: e.clientX, y: e.clientY}; });
+  window.addEventListener("mouseup", () => { drag = null; });
+  window.addEventListener("mousemove", e => {
+    if (!drag) return;
+    view.dx += e.clientX - drag.x; view.dy += e.clientY - drag.y;
+    drag = {x: e.clientX, y: e.clientY};
+    drawMap();
+  });
+  c.addEventListener("dblclick", () => { view.zoom = 1; view.dx = 0; view.dy = 0; drawMap(); });
 }
 
 function drawMap() {
@@ -261,4 +288,5 @@ function renderDecisions(st) {
 }
 
 window.addEventListener("resize", () => { if (lastState) render(lastState); });
+setupMapControls();
 poll();
