@@ -31,7 +31,8 @@ pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's ch
 ROOT = Path(__file__).resolve().parents[2]
 #: chromium without anything that reaches the network or the user's profile
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--disable-dev-shm-usage"]   # containers often have a tiny /dev/shm
 #: a tiny UMa run that lasts some seconds: 30 points of 'none' (chains of 'fbs' computed with
 #: them), no encrypted-PRS pass, DigSig from the HMAC chain's tag checks
 LIVE_RUN = {"propagation": {"model": "uma"},
@@ -118,14 +119,17 @@ def test_live_run_progress_timeline_and_map(tmp_path, browser):
         errors: list[str] = []
         page.on("pageerror", lambda e: errors.append(str(e)))
         page.goto(url)
-        # first read: the run is going and has points
+        # first read: the run is going and 'none' has some of its points, not all
+        n = LIVE_RUN["trajectory"]["num_points"]
         page.wait_for_function(
             "document.getElementById('status').textContent === 'running'"
-            " && +document.getElementById('progress-none')?.dataset.done >= 1",
+            " && +document.getElementById('progress-none')?.dataset.done >= 1"
+            f" && +document.getElementById('progress-none').dataset.done < {n}"
+            " && +document.getElementById('decisions').dataset.points >= 1",
             timeout=WAIT_MS)
         done1 = int(page.get_attribute("#progress-none", "data-done"))
         shown1 = int(page.get_attribute("#decisions", "data-points"))
-        assert done1 < LIVE_RUN["trajectory"]["num_points"]
+        assert 1 <= shown1 <= done1 < n
         # second read: both advanced
         page.wait_for_function(
             f"+document.getElementById('progress-none').dataset.done > {done1}"

@@ -168,3 +168,31 @@ def test_status_progress_and_eta_of_a_running_folder(tmp_path):
     assert (st["status"], st["eta_s"]) == ("complete", 0.0)
     view.wait_scene(60)
     assert view.scene()["num_points"] == 10
+
+
+def test_monte_carlo_folder_follows_the_running_realisation(tmp_path):
+    cfg = config_from_dict({"propagation": {"model": "uma"}, "trajectory": {"num_points": 6},
+                            "run": {"scenarios": ["none"]}})
+    top = tmp_path / "mc"
+    top.mkdir()
+    names = ["realisation_0", "realisation_1", "realisation_2"]
+    (top / "run.json").write_text(json.dumps({
+        "config": config_to_dict(cfg), "status": "running",
+        "realisations": [{"index": i, "dir": n} for i, n in enumerate(names)]}))
+    (top / OWNER_FILE).write_text("pid 1\n")
+    _run_json(top / names[0], cfg, "complete")
+    with ResultsWriter(top / names[0] / "none_results.csv") as w:
+        for i in range(6):
+            w.write(_row(i))
+    _run_json(top / names[1], cfg, "running")
+    with ResultsWriter(top / names[1] / "none_results.csv") as w:
+        w.write(_row(0, "large_error"))
+    view = RunFolderState(top, clock=Clock())
+    st = view.state("none")
+    assert st["montecarlo"] == {"done": 1, "total": 3, "following": "realisation_1"}
+    assert (st["status"], st["folder"], st["eta_s"]) == ("running", str(top), None)
+    assert st["scenarios"][0]["done"] == 1
+    assert st["points"]["outcome"] == [OUTCOMES.index("large_error")]
+    assert str(st["points"]["generation"]).startswith("realisation_1:")
+    view.wait_scene(60)
+    assert view.scene()["num_points"] == 6

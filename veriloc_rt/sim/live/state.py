@@ -237,6 +237,8 @@ class RunFolderState:
         self._scene: dict | None = None
         self._scene_version = 0
         self._scene_thread: threading.Thread | None = None
+        #: the realisations' states of a Monte Carlo folder, by folder
+        self._children: dict[Path, RunFolderState] = {}
         #: set by whoever started the run (the editor): a callable -> (returncode or None, text)
         self.process_status = None
 
@@ -277,13 +279,50 @@ class RunFolderState:
                 self._scene = layer
 
     def wait_scene(self, timeout: float | None = None) -> None:
-        """Block until the map's layer of the current config is built (tests, screenshots)."""
+        """Block until the map's layer of the current config (and of every realisation shown
+        so far) is built (tests, screenshots)."""
         t = self._scene_thread
         if t is not None:
             t.join(timeout)
+        for child in list(self._children.values()):
+            child.wait_scene(timeout)
+
+    # -- Monte Carlo: a folder of realisation folders ----------------------------------------
+    def _realisation(self, info: dict | None) -> tuple["RunFolderState", dict] | None:
+        """For a Monte Carlo folder (``run.json`` lists ``realisations``): the state of the
+        realisation to show (the first one still running, else the last one begun) and
+        ``{"done", "total", "following"}``; None for a single run."""
+        listing = (info or {}).get("realisations")
+        if not isinstance(listing, list) or not listing:
+            return None
+        dirs = [self.folder / str(r.get("dir", "")) for r in listing if isinstance(r, dict)]
+        status = []
+        for d in dirs:
+            try:
+                status.append(json.loads((d / "run.json").read_text()).get("status"))
+            except (OSError, ValueError, AttributeError):
+                status.append(None)
+        begun = [i for i, st in enumerate(status) if st is not None]
+        running = [i for i, st in enumerate(status) if st == "running"]
+        pick = running[0] if running else (begun[-1] if begun else 0)
+        if pick >= len(dirs):
+            return None
+        path = dirs[pick]
+        with self._lock:
+            child = self._children.get(path)
+            if child is None:
+                child = self._children[path] = RunFolderState(path, self.clock)
+        return child, {"done": status.count("complete"), "total": len(dirs),
+                       "following": path.name}
 
     def scene(self) -> dict:
-        """The map's fixed layer (:func:`scene_layer`), ``{"ready": False}`` until it exists."""
+        """The map's fixed layer (:func:`scene_layer`), ``{"ready": False}`` until it exists;
+        of the realisation shown, for a Monte Carlo folder."""
+        mc = self._realisation(self._run_info())
+        if mc is not None:
+            out = mc[0].scene()
+            out["version"] = f"{mc[1]['following']}:{out['version']}"
+            return out
         with self._lock:
             self._update_config(self._run_info())
             out = dict(self._scene) if self._scene is not None else {"ready": False}
@@ -314,8 +353,33 @@ class RunFolderState:
         ``scenarios``: [{name, done, total, eta_s, generation, metrics}], in run order;
         ``metrics`` as :func:`~veriloc_rt.report.results.scenario_metrics` over the rows so far.
         ``eta_s``: seconds until the whole run ends, at the rate of the last
-        :data:`RATE_WINDOW_S` (None before it is known).
+        :data:`RATE_WINDOW_S` (None before it is known). For a Monte Carlo folder: the state
+        of the realisation shown (:meth:`_realisation`) with the folder's own status,
+        ``montecarlo``: ``{"done", "total", "following"}`` and no overall ETA.
         """
+        mc = self._realisation(self._run_info())
+        if mc is not None:
+            child, progress = mc
+            out = child.state(scenario, start)
+            with self._lock:
+                status, _stage = self._status(self._run_info())
+            tag = progress["following"]
+            out.update(folder=str(self.folder), status=status, montecarlo=progress,
+                       scene_version=f"{tag}:{out['scene_version']}")
+            for sc in out["scenarios"]:
+                sc["generation"] = f"{tag}:{sc['generation']}"
+            if "points" in out:   # another realisation's points are another series
+                out["points"]["generation"] = f"{tag}:{out['points']['generation']}"
+            if status != "complete":
+                out["eta_s"] = None
+        else:
+            out = self._single_state(scenario, start)
+        if self.process_status is not None:
+            code, text = self.process_status()
+            out["process"] = {"returncode": code, "message": text}
+        return out
+
+    def _single_state(self, scenario: str | None, start: int) -> dict:
         with self._lock:
             now = self.clock()
             info = self._run_info()
@@ -355,7 +419,4 @@ class RunFolderState:
                 tail = self._tails[sel]
                 out["points"] = {"scenario": sel, "generation": tail.generation,
                                  **points_json(tail.rows, max(0, min(start, len(tail.rows))))}
-        if self.process_status is not None:
-            code, text = self.process_status()
-            out["process"] = {"returncode": code, "message": text}
         return out

@@ -59,7 +59,10 @@ function render(st) {
   s.textContent = status; s.className = "badge " + status;
   const stages = {setup: "setting up", propagation: "computing the links (ray tracing or UMa)",
                   scenarios: "evaluating the points", done: "finished"};
-  document.getElementById("stage").textContent = stages[st.stage] || st.stage;
+  let stage = stages[st.stage] || st.stage;
+  if (st.montecarlo) stage = "Monte Carlo: " + st.montecarlo.done + " of " + st.montecarlo.total +
+    " realisations complete; showing " + st.montecarlo.following + " (" + stage + ")";
+  document.getElementById("stage").textContent = stage;
   document.getElementById("eta").textContent = st.status === "complete" ? "done" : fmtDuration(st.eta_s);
   document.getElementById("folder").textContent = st.folder;
   const proc = document.getElementById("process");
