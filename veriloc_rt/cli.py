@@ -350,7 +350,7 @@ def cmd_edit(args) -> int:
     from .sim.live.editor import editor_config
     from .sim.live.server import LiveServer
 
-    if args.config is not None:
+    if args.config is not None and Path(args.config).exists():
         editor_config(args.config)    # a bad file: the one-line error now, not in the page
     return _serve(LiveServer(args.out, config_path=args.config, port=_port(args.port)), args,
                   "edit")
@@ -434,8 +434,9 @@ def build_parser() -> argparse.ArgumentParser:
     w.set_defaults(func=cmd_view)
     e = sub.add_parser("edit", help="edit a config in the browser (fields, ranges, defaults), "
                        "validate, save it and start a run with its live view")
-    e.add_argument("config", nargs="?", help="JSON config file to edit (and save to); default: "
-                   "the built-in default, saved beside --out")
+    e.add_argument("config", nargs="?", help="JSON config file to edit and save to (a new file "
+                   "starts from the built-in default); default: the built-in default, saved "
+                   "beside --out")
     e.add_argument("--out", default="results", help="output folder of the run it starts "
                    "(default: results; editable in the page)")
     e.add_argument("--port", type=int, help="port (default 8765, or a free one)")

@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import csv
 import json
+import threading
+import time
 import urllib.error
 import urllib.request
 
 import pytest
 
 from veriloc_rt.cli import main
+from veriloc_rt.config import Config, config_to_dict
 from veriloc_rt.detectors.outcomes import OUTCOMES
 from veriloc_rt.sim.live.server import LiveServer
 from veriloc_rt.sim.live.state import RunFolderState
@@ -18,6 +21,8 @@ from veriloc_rt.sim.live.state import RunFolderState
 #: a tiny UMa run: two scenarios, no encrypted-PRS pass, DigSig from the HMAC chain's checks
 TINY = {"propagation": {"model": "uma"}, "trajectory": {"num_points": 8, "adversary_lag_points": 2},
         "run": {"scenarios": ["none", "fbs"], "evaluate_encrypted": False, "digsig": "shared"}}
+#: a child ``veriloc-rt run`` that fails on its input: interpreter start and imports, s
+RUN_START_TIMEOUT_S = 60.0
 #: shares are ratios of small counts; the JSON round trip keeps floats exact
 EXACT = 1e-12
 
@@ -114,3 +119,36 @@ def test_bad_flags_of_the_live_commands_are_one_line(tmp_path, capsys, args, lin
     args = [a.format(tmp=tmp_path) for a in args]
     assert main([*args, "--out", str(tmp_path / "o")] if args[0] == "run" else args) == 2
     assert capsys.readouterr().err.strip() == line.format(tmp=tmp_path)
+
+
+def test_editor_on_a_new_config_file_starts_from_the_default(tmp_path):
+    server = LiveServer(tmp_path / "out", config_path=tmp_path / "new.json", port=0)
+    st = server.editor_state()
+    assert st["path"] == str(tmp_path / "new.json") and st["out"] == str(tmp_path / "out")
+    assert st["config"] == config_to_dict(Config())
+    # closing a server that never served returns at once (http.server's shutdown would wait)
+    t = threading.Thread(target=server.shutdown)
+    t.start()
+    t.join(10)
+    assert not t.is_alive()
+
+
+def test_a_run_the_editor_starts_that_fails_shows_its_error_line(tmp_path, capsys):
+    (tmp_path / "taken").write_text("a file, not a folder")
+    server = LiveServer(tmp_path / "unused", port=0)
+    try:
+        res = server.start_run(dict(TINY), str(tmp_path / "c.json"), str(tmp_path / "taken"))
+        assert res["ok"] and json.loads((tmp_path / "c.json").read_text()) == TINY
+        deadline = time.monotonic() + RUN_START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            proc = server.view.state().get("process")
+            if proc and proc["returncode"] is not None:
+                break
+            time.sleep(0.1)
+        assert proc["returncode"] == 2
+        # the line the same command prints in this process
+        assert main(["run", str(tmp_path / "c.json"), "--out", str(tmp_path / "taken")]) == 2
+        assert proc["message"] == capsys.readouterr().err.strip()
+    finally:
+        server.stop_run()
+        server.shutdown()

@@ -77,11 +77,12 @@ class RunProcess:
         self._reader.start()
 
     def _read(self) -> None:
-        for line in self.proc.stderr:
-            # tqdm redraws with carriage returns: keep the last state of each line
-            text = line.rstrip("\n").split("\r")[-1].strip()
-            if text:
-                self.lines.append(text)
+        with self.proc.stderr:
+            for line in self.proc.stderr:
+                # tqdm redraws with carriage returns: keep the last state of each line
+                text = line.rstrip("\n").split("\r")[-1].strip()
+                if text:
+                    self.lines.append(text)
 
     def status(self) -> tuple[int | None, str]:
         """(return code or None while it runs, its last stderr line: on failure the error)."""
@@ -124,6 +125,7 @@ class LiveServer:
             self.httpd = ThreadingHTTPServer((HOST, 0), _handler(self))
         self.httpd.daemon_threads = True
         self._thread: threading.Thread | None = None
+        self._serving = False
 
     @property
     def port(self) -> int:
@@ -135,17 +137,22 @@ class LiveServer:
 
     def start(self) -> "LiveServer":
         """Serve in a background thread."""
+        self._serving = True
         self._thread = threading.Thread(target=self.httpd.serve_forever, daemon=True,
                                         name="veriloc-live-http")
         self._thread.start()
         return self
 
     def serve_forever(self) -> None:
+        """Serve in this thread until :meth:`shutdown` (from another thread) or Ctrl-C."""
+        self._serving = True
         self.httpd.serve_forever()
 
     def shutdown(self) -> None:
-        """Stop serving (a run the editor started goes on)."""
-        self.httpd.shutdown()
+        """Stop serving and close the socket (a run the editor started goes on)."""
+        if self._serving:   # http.server's shutdown waits for a loop that must be running
+            self.httpd.shutdown()
+            self._serving = False
         self.httpd.server_close()
 
     # -- the editor's actions -----------------------------------------------------------------
@@ -161,7 +168,11 @@ class LiveServer:
                 info = json.loads((self.view.folder / "run.json").read_text())["config"]
             except (OSError, ValueError, KeyError, TypeError):
                 info = None
-        config = info if isinstance(info, dict) else editor_config(cfg_path)
+        if isinstance(info, dict):
+            config = info
+        else:   # a config file not written yet starts from the built-in default
+            config = editor_config(cfg_path if cfg_path is not None and cfg_path.exists()
+                                   else None)
         return {"config": config, "path": str(self.default_config_path()),
                 "out": str(self.view.folder)}
 
