@@ -196,3 +196,23 @@ def test_monte_carlo_folder_follows_the_running_realisation(tmp_path):
     assert str(st["points"]["generation"]).startswith("realisation_1:")
     view.wait_scene(60)
     assert view.scene()["num_points"] == 6
+
+
+def test_map_of_a_mesh_scene_has_the_roofs_not_walls_or_ground():
+    from pathlib import Path
+
+    from veriloc_rt.sim.live.state import scene_layer
+    from veriloc_rt.world.scene.external import MeshScene
+
+    mini = Path(__file__).resolve().parents[3] / "scenes" / "mini_canyon"
+    cfg = config_from_dict({"scene": {"source": str(mini / "scene.xml")},
+                            "trajectory": {"source": str(mini / "trajectory.csv"),
+                                           "num_points": 8}})
+    layer = scene_layer(cfg)
+    tri = MeshScene.from_xml(mini / "scene.xml").triangles
+    # the mini canyon: box buildings of 12 triangles (2 per face) and a ground of 2 triangles;
+    # the top view keeps each box's 2 roof triangles
+    num_boxes = (len(tri) - 2) // 12
+    assert (len(tri) - 2) % 12 == 0
+    assert len(layer["triangles"]) == 2 * num_boxes
+    assert "buildings" not in layer and len(layer["ue"]) == 8
