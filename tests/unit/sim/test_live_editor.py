@@ -116,3 +116,15 @@ def test_save_writes_the_config_it_checked(tmp_path):
     with pytest.raises(ValueError, match="^seed: got -1"):
         save_config(set_field(data, "seed", -1), tmp_path / "d.json")
     assert not (tmp_path / "d.json").exists()
+
+
+def test_check_of_the_inputs_gives_the_line_of_config_check(tmp_path, capsys):
+    # valid as a config, but the trajectory CSV does not exist: only the input checks see it
+    data = set_field(editor_config(None), "trajectory.source", str(tmp_path / "missing.csv"))
+    assert check_config(data) is None
+    exc = check_config(data, inputs=True)
+    assert exc is not None
+    f = tmp_path / "c.json"
+    f.write_text(json.dumps(data))
+    assert main(["config", "check", str(f)]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {exc}"

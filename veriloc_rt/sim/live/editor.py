@@ -4,18 +4,21 @@
 schema`` prints) into one entry per leaf field: dotted path, input kind, default, range and
 doc; the page draws one input per entry, so a field added to the config appears in the editor
 with nothing to change here. :func:`check_config` validates an edited config with the
-package's own validation (:func:`~veriloc_rt.config.config_from_dict`) and returns the same
-one-line ``error: <field>: <problem>`` a run prints.
+package's own validation (:func:`~veriloc_rt.config.config_from_dict`, and on request the
+input checks of ``veriloc-rt config check``) and returns the same one-line
+``error: <field>: <problem>`` a run prints.
 """
 
 from __future__ import annotations
 
 import json
+import tempfile
 from pathlib import Path
 
 from ...config import config_from_dict, config_schema, config_to_dict, load_config
 from ...errors import InputError
 from ...fileio import atomic_write_text
+from ..checks import check_inputs
 
 __all__ = ["form_fields", "range_text", "check_config", "editor_config", "save_config",
            "set_field"]
@@ -94,11 +97,19 @@ def set_field(data: dict, path: str, value) -> dict:
     return data
 
 
-def check_config(data) -> InputError | None:
+def check_config(data, inputs: bool = False) -> InputError | None:
     """None when ``data`` is a valid config, else the :class:`InputError` a run would raise
-    (``f"error: {exc}"`` is the CLI's line; ``exc.field`` names the field)."""
+    (``f"error: {exc}"`` is the CLI's line; ``exc.field`` names the field).
+
+    :param inputs: also every check of the run's inputs that ``veriloc-rt config check`` makes
+        (:func:`~veriloc_rt.sim.checks.check_inputs`: scene, trajectory, key files; it builds
+        the geometry, a second or so, and traces nothing)
+    """
     try:
-        config_from_dict(data)
+        cfg = config_from_dict(data)
+        if inputs:
+            with tempfile.TemporaryDirectory(prefix="veriloc-edit-") as tmp:
+                check_inputs(cfg, tmp)
     except InputError as exc:
         return exc
     return None

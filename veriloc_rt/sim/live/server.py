@@ -278,7 +278,7 @@ def _handler(server: LiveServer) -> type:
             data = body.get("config")
             try:
                 if self.path == "/api/validate":
-                    exc = check_config(data)
+                    exc = check_config(data, inputs=True)
                     return self._json({"ok": True} if exc is None else _error(exc))
                 if self.path == "/api/save":
                     path = save_config(data, body.get("path") or server.default_config_path())
