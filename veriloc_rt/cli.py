@@ -70,15 +70,56 @@ def _out(path: str) -> Path:
     return check_out_dir(path, "--out")
 
 
-def cmd_run(args) -> int:
-    from .sim.engine import run
+def _port(port: int | None) -> int:
+    from .sim.live.server import DEFAULT_PORT
 
+    if port is None:
+        return DEFAULT_PORT
+    if not 0 <= port <= 65535:
+        raise InputError("--port", f"got {port}, expected 0..65535 (0: any free port)")
+    return port
+
+
+def _open_browser(url: str, args) -> None:
+    if not args.no_browser:
+        import webbrowser
+
+        webbrowser.open(url)
+
+
+def cmd_run(args) -> int:
     cfg = _load(args.config, args.points, args.seed)
     out = _out(args.out)
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers", f"got {args.workers}, expected an integer >= 1")
     if args.scheduler is not None and args.workers is not None:
         raise InputError("--workers", "not with --scheduler (the cluster's workers compute)")
+    if not args.live and (args.port is not None or args.no_browser):
+        raise InputError("--port" if args.port is not None else "--no-browser",
+                         "only with --live")
+    if not args.live:
+        return _run(cfg, out, args)
+    from .sim.live.server import start_view_process
+
+    port = _port(args.port)
+    view = start_view_process(out, port)
+    try:
+        print(f"live view: {view.url}", flush=True)
+        _open_browser(view.url, args)
+        code = _run(cfg, out, args)
+        print(f"live view stays at {view.url} (Ctrl-C to stop)", flush=True)
+        try:
+            view.wait()
+        except KeyboardInterrupt:
+            pass
+        return code
+    finally:
+        view.stop()
+
+
+def _run(cfg, out: Path, args) -> int:
+    from .sim.engine import run
+
     workers = (1 if args.scheduler is not None else args.workers if args.workers is not None
                else min(2, os.cpu_count() or 1))
     if args.verbose < 2 and (args.scheduler is not None
@@ -278,6 +319,43 @@ def cmd_validate(args) -> int:
     return 0
 
 
+def _serve(server, args, page: str = "") -> int:
+    """Serve ``server`` until Ctrl-C (or, with ``--watch-stdin``, until stdin closes)."""
+    print(f"live view of {server.view.folder}: {server.url}{page}", flush=True)
+    _open_browser(server.url + page, args)
+    if getattr(args, "watch_stdin", False):
+        import threading
+
+        def watch():
+            sys.stdin.buffer.read()     # returns at EOF: the process that started this ended
+            server.shutdown()
+
+        threading.Thread(target=watch, daemon=True).start()
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    return 0
+
+
+def cmd_view(args) -> int:
+    from .sim.live.server import LiveServer
+
+    if Path(args.dir).exists() and not Path(args.dir).is_dir():
+        raise InputError(args.dir, "not a folder (give a run's --out folder)")
+    return _serve(LiveServer(args.dir, port=_port(args.port)), args)
+
+
+def cmd_edit(args) -> int:
+    from .sim.live.editor import editor_config
+    from .sim.live.server import LiveServer
+
+    if args.config is not None and Path(args.config).exists():
+        editor_config(args.config)    # a bad file: the one-line error now, not in the page
+    return _serve(LiveServer(args.out, config_path=args.config, port=_port(args.port)), args,
+                  "edit")
+
+
 def cmd_config(args) -> int:
     from .config import config_schema, config_to_dict
 
@@ -341,7 +419,29 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true",
                    help="write into a non-empty --out that holds no run of this config "
                    "(replacing the run files there)")
+    r.add_argument("--live", action="store_true", help="serve the live view of --out on "
+                   "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
+    r.add_argument("--port", type=int, help="--live: port (default 8765, or a free one)")
+    r.add_argument("--no-browser", action="store_true", help="--live: do not open a browser")
     r.set_defaults(func=cmd_run)
+    w = sub.add_parser("view", help="serve the live view of a running or finished run folder "
+                       "on 127.0.0.1")
+    w.add_argument("dir", help="the run's --out folder")
+    w.add_argument("--port", type=int, help="port (default 8765, or a free one when taken; "
+                   "0: any free one)")
+    w.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    w.add_argument("--watch-stdin", action="store_true", help=argparse.SUPPRESS)
+    w.set_defaults(func=cmd_view)
+    e = sub.add_parser("edit", help="edit a config in the browser (fields, ranges, defaults), "
+                       "validate, save it and start a run with its live view")
+    e.add_argument("config", nargs="?", help="JSON config file to edit and save to (a new file "
+                   "starts from the built-in default); default: the built-in default, saved "
+                   "beside --out")
+    e.add_argument("--out", default="results", help="output folder of the run it starts "
+                   "(default: results; editable in the page)")
+    e.add_argument("--port", type=int, help="port (default 8765, or a free one)")
+    e.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    e.set_defaults(func=cmd_edit)
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")
     s.add_argument("--out", required=True, help="output folder")
