@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up of veriloc-rt on Debian/Ubuntu: system libLLVM 19 (Dr.Jit's CPU back end for
-# Sionna RT; LLVM 14-16 do not work), chromium (the live view's browser test) and a virtual
-# environment .venv with the package and its test extras. Safe to run again: it only installs what is missing or changed.
+# Sionna RT; LLVM 14-16 do not work) and a virtual environment .venv with the package and its test
+# extras. Safe to run again: it only installs what is missing or changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -30,11 +30,6 @@ have_llvm() {
 apt_pkgs=()
 if ! have_llvm; then
   apt_pkgs+=(libllvm19)
-fi
-# the live view's browser test (tests/integration/test_live_browser.py) drives Debian's chromium
-# through Playwright; nothing is downloaded at test time ("playwright install" is never run)
-if [ ! -x /usr/bin/chromium ]; then
-  apt_pkgs+=(chromium)
 fi
 if [ ! -x .venv/bin/python ] && ! "$PY" -c 'import ensurepip, venv' >/dev/null 2>&1; then
   apt_pkgs+=("python3-venv")

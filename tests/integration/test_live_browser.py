@@ -26,7 +26,7 @@ from veriloc_rt.sim.live.editor import check_config, editor_config, set_field
 
 CHROMIUM = Path("/usr/bin/chromium")
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at "
-                                "/usr/bin/chromium (scripts/setup.sh installs it)")
+                                "/usr/bin/chromium (.ci/run installs it: apt-get install chromium)")
 
 ROOT = Path(__file__).resolve().parents[2]
 #: chromium without anything that reaches the network or the user's profile
