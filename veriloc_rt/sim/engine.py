@@ -133,7 +133,9 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``
     """
     check_workers(workers, scheduler)
-    out = Path(out_dir) if out_dir is not None else None
+    # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
+    # relative --out left relative to the caller's working directory
+    out = Path(out_dir).resolve() if out_dir is not None else None
     if resume and out is None:
         raise ValueError("Argument `resume` needs `out_dir`")
     if resume:

@@ -41,6 +41,7 @@ from ..fileio import atomic_output, atomic_write_text
 from ..report import plots
 from ..rng import stream
 from .engine import Progress, run
+from .blas import one_blas_thread
 from .executors import check_workers, local_cluster, scheduler_client
 from .run_folder import (check_fresh, check_resume, clear_run_files, locked, same_config,
                          write_run_json)
@@ -145,6 +146,14 @@ def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | N
     return run(cfg, out, progress=progress, force=force).metrics
 
 
+def _dask_realisation(cfg: Config, out_dir: str, resume: bool, force: bool) -> dict:
+    """One realisation as a Dask task: BLAS pinned to one thread first, as the command line
+    pins it (:func:`~veriloc_rt.sim.blas.one_blas_thread`; a worker started without that
+    computes other last bits, and slower)."""
+    one_blas_thread()
+    return _realisation(cfg, out_dir, resume, None, force)
+
+
 def run_montecarlo(cfg: Config, out_dir: str | Path, progress: Progress | None = None,
                    workers: int = 1, scheduler=None, resume: bool = False,
                    force: bool = False) -> MonteCarloResults:
@@ -221,7 +230,7 @@ def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None,
     from distributed import as_completed
 
     tag = uuid.uuid4().hex[:8]
-    futures = [client.submit(_realisation, real["config"], str(real["dir"]), resume, None, force,
+    futures = [client.submit(_dask_realisation, real["config"], str(real["dir"]), resume, force,
                              key=f"veriloc-realisation-{real['index']}-{tag}", pure=False)
                for real in reals]
     index = {f.key: real["index"] for f, real in zip(futures, reals)}
