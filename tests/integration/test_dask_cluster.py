@@ -145,3 +145,22 @@ def test_real_cluster_gives_the_serial_files(serial, cluster):
     assert timing["scheduler"] == address and timing["workers"] == 2
     # the workers wrote nothing where they run: every file went to the client's --out
     assert not any(worker_cwd.iterdir())
+
+
+@pytest.mark.raytrace
+def test_ray_traced_realisations_use_the_clients_cache(cluster, tmp_path):
+    """Regression: the realisations of a ray-traced Monte Carlo resolved the relative
+    ``propagation.raytrace.cache_dir`` on the workers, so each traced into a cache of its own
+    working directory; they use the client's (the serial run's) now."""
+    address, worker_cwd = cluster
+    tiny = json.loads((ROOT / "configs" / "ci-tiny.json").read_text())
+    cfg = {**tiny, "trajectory": {**tiny["trajectory"], "num_points": 2},
+           "run": {"scenarios": ["none"], "realisations": 2}}
+    _finish(_start(tmp_path, cfg, "mc_traced", "--scheduler", address))
+    cache = tmp_path / ".veriloc-cache" / "raytrace"   # the config's default, relative
+    # one PathSolver call per realisation (2 points, one batch), none found in the cache
+    calls = [json.loads((tmp_path / "mc_traced" / f"realisation_00{r}" /
+                         "propagation_summary.json").read_text())["raytrace_stats"]["calls"]
+             for r in range(2)]
+    assert len(list(cache.glob("*.npz"))) == sum(calls) > 0
+    assert not any(worker_cwd.iterdir())
