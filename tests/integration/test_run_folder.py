@@ -333,3 +333,16 @@ def test_ctrl_c_during_ray_tracing_then_resume_reuses_the_traced_calls(tmp_path)
     again = json.loads((tmp_path / "again" / "propagation_summary.json").read_text())
     assert again["raytrace_stats"]["calls"] == 0
     assert again["raytrace_stats"]["cache_hits"] == stats["cache_hits"] + stats["calls"]
+
+
+def test_relative_out_is_recorded_as_an_absolute_scene_path(tmp_path, monkeypatch):
+    """Regression (a real Dask cluster, issue #22): with a relative ``out_dir``, run.json
+    recorded ``scene_xml`` relative to the caller's working directory (and the geometry a
+    cluster's workers receive held that relative path); it is absolute now, as a Monte Carlo's."""
+    monkeypatch.chdir(tmp_path)
+    cfg = config_from_dict({**UMA, "trajectory": {"num_points": 2},
+                            "run": {"scenarios": ["none"]}})
+    res = run(cfg, "rel")
+    want = tmp_path.resolve() / "rel" / "scene" / "scene.xml"
+    assert json.loads((tmp_path / "rel" / "run.json").read_text())["scene_xml"] == str(want)
+    assert res.geometry.scene_xml == want and res.out_dir == tmp_path.resolve() / "rel"

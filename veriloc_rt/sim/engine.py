@@ -114,7 +114,8 @@ def _peak_rss_mib() -> dict:
 
 
 def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
-        resume: bool = False, workers: int = 1, scheduler=None, force: bool = False) -> Results:
+        resume: bool = False, workers: int = 1, scheduler=None, force: bool = False,
+        cache_dir: str | Path | None = "default") -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
 
     One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
@@ -132,10 +133,15 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
         scheduler address (``tcp://host:8786``) or a connected ``distributed.Client``; same
         results as the serial run. Not together with ``workers > 1``.
     :param force: write into a non-empty ``out_dir`` that holds no run of this config
+    :param cache_dir: the ray tracer's cache folder: "default" is the config's
+        ``propagation.raytrace.cache_dir`` (a relative one under this process's working
+        directory), None none
     :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``
     """
     check_workers(workers, scheduler)
-    out = Path(out_dir) if out_dir is not None else None
+    # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
+    # relative --out left relative to the caller's working directory
+    out = Path(out_dir).resolve() if out_dir is not None else None
     if resume and out is None:
         raise ValueError("Argument `resume` needs `out_dir`")
     if resume:
@@ -149,11 +155,11 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
                 check_resume(out, cfg)
             else:
                 check_fresh(out, cfg, force)
-        return _run(cfg, out, progress, resume, workers, client)
+        return _run(cfg, out, progress, resume, workers, client, cache_dir)
 
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
-         client) -> Results:
+         client, cache_dir: str | Path | None = "default") -> Results:
     timing: dict = {}
     t0 = time.perf_counter()
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
@@ -170,7 +176,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
         if not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
             plot_top_view(geometry, out / "scene_top_view.png")
     t1 = time.perf_counter()
-    prop = compute_propagation(cfg, geometry, progress, workers=workers)
+    prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
     warn_unreachable(prop.bs_ue.has_path())
     summary = propagation_summary(geometry, prop)

@@ -24,6 +24,7 @@ from collections import deque
 from contextlib import contextmanager
 
 from ..errors import InputError
+from .blas import one_blas_thread
 from .run_folder import run_keys
 from .runner import ScenarioRunner
 
@@ -135,8 +136,11 @@ def _dask_chunk(token: str, spec: tuple, scenario: str, points: list[int]) -> li
 
     The runner is built once per worker thread (a runner is not thread-safe) from
     ``spec = (cfg, geometry, propagation)``; the keys are rebuilt from the config, as the
-    Ed25519 key objects do not pickle.
+    Ed25519 key objects do not pickle. BLAS is pinned to one thread first, as the command line
+    pins it (:func:`~veriloc_rt.sim.blas.one_blas_thread`): a worker started without that
+    computes other last bits, and slower.
     """
+    one_blas_thread()
     k = (token, threading.get_ident())
     with _DASK_LOCK:
         runner = _DASK_RUNNERS.get(k)

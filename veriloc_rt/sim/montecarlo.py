@@ -41,6 +41,7 @@ from ..fileio import atomic_output, atomic_write_text
 from ..report import plots
 from ..rng import stream
 from .engine import Progress, run
+from .blas import one_blas_thread
 from .executors import check_workers, local_cluster, scheduler_client
 from .run_folder import (check_fresh, check_resume, clear_run_files, locked, same_config,
                          write_run_json)
@@ -48,7 +49,7 @@ from .run_folder import (check_fresh, check_resume, clear_run_files, locked, sam
 log = logging.getLogger(__name__)
 
 __all__ = ["MonteCarloResults", "run_montecarlo", "realisation_config", "mean_ci",
-           "aggregate"]
+           "aggregate", "client_cache_dir"]
 
 #: distributions the Monte Carlo ``run.json`` records besides a run's
 MC_VERSIONS = ("dask", "distributed")
@@ -131,9 +132,10 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
 
 
 def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | None = None,
-                 force: bool = False) -> dict:
+                 force: bool = False, cache_dir: str | None = "default") -> dict:
     """One realisation (a task): its metrics.json content. With ``resume``, a realisation
-    already complete with this config is read back; a partial one continues."""
+    already complete with this config is read back; a partial one continues. ``cache_dir``:
+    as :func:`~veriloc_rt.sim.engine.run`'s."""
     out = Path(out_dir)
     info = out / "run.json"
     if resume and info.exists():
@@ -141,8 +143,27 @@ def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | N
                 and (out / "metrics.json").exists()):
             log.info("%s: complete, kept", out)
             return json.loads((out / "metrics.json").read_text())
-        return run(cfg, out, progress=progress, resume=True).metrics
-    return run(cfg, out, progress=progress, force=force).metrics
+        return run(cfg, out, progress=progress, resume=True, cache_dir=cache_dir).metrics
+    return run(cfg, out, progress=progress, force=force, cache_dir=cache_dir).metrics
+
+
+def _dask_realisation(cfg: Config, out_dir: str, resume: bool, force: bool,
+                      cache_dir: str | None) -> dict:
+    """One realisation as a Dask task: BLAS pinned to one thread first, as the command line
+    pins it (:func:`~veriloc_rt.sim.blas.one_blas_thread`; a worker started without that
+    computes other last bits, and slower)."""
+    one_blas_thread()
+    return _realisation(cfg, out_dir, resume, None, force, cache_dir)
+
+
+def client_cache_dir(cfg: Config) -> str | None:
+    """The ray tracer's cache folder as this process sees it, for a task on another process:
+    the config's ``propagation.raytrace.cache_dir`` made absolute against this working
+    directory (a worker's is elsewhere: it would trace again, and write its cache there);
+    None when caching is off. The config itself keeps the relative path (it is part of the
+    config the run folder records and compares)."""
+    cache = cfg.propagation.raytrace.cache_dir
+    return str(Path(cache).resolve()) if cache else None
 
 
 def run_montecarlo(cfg: Config, out_dir: str | Path, progress: Progress | None = None,
@@ -221,7 +242,9 @@ def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None,
     from distributed import as_completed
 
     tag = uuid.uuid4().hex[:8]
-    futures = [client.submit(_realisation, real["config"], str(real["dir"]), resume, None, force,
+    cache_dir = client_cache_dir(reals[0]["config"])
+    futures = [client.submit(_dask_realisation, real["config"], str(real["dir"]), resume, force,
+                             cache_dir,
                              key=f"veriloc-realisation-{real['index']}-{tag}", pure=False)
                for real in reals]
     index = {f.key: real["index"] for f, real in zip(futures, reals)}
