@@ -3,7 +3,7 @@
 Independent reference: OpenBLAS reads ``OPENBLAS_NUM_THREADS`` when it loads, so a process
 started with the variable set to 1 must report 1 thread before anything is changed; and a
 process started without it reports as many as OpenBLAS allows there (``os.cpu_count()``, at
-most), which :func:`set_blas_threads` must bring down to 1.
+most), which :func:`one_blas_thread` must bring down to 1.
 """
 
 from __future__ import annotations
@@ -14,17 +14,12 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
-from veriloc_rt.sim.blas import blas_threads, openblas_libraries, set_blas_threads
-
 ROOT = Path(__file__).resolve().parents[3]
 
-#: what the child process reports: threads per library before, the counts set_blas_threads
-#: returned, and threads per library after one_blas_thread
+#: what the child process reports: threads per library before and after one_blas_thread
 PROBE = """\
 import json, numpy, scipy.linalg
-from veriloc_rt.sim.blas import blas_threads, one_blas_thread, set_blas_threads
+from veriloc_rt.sim.blas import blas_threads, one_blas_thread
 before = blas_threads()
 one_blas_thread()
 print(json.dumps([before, blas_threads()]))
@@ -43,37 +38,20 @@ def _probe(env_threads: str | None) -> tuple[dict, dict]:
     return before, after
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
-def test_numpy_and_scipy_openblas_are_found():
+def test_numpy_and_scipy_blas_are_found():
+    from veriloc_rt.sim.blas import blas_threads
+
     import numpy  # noqa: F401
     import scipy.linalg  # noqa: F401
 
-    libs = openblas_libraries()
-    assert libs, "the NumPy and SciPy wheels each ship an OpenBLAS"
-    assert set(blas_threads()) == set(libs)
+    # the NumPy and SciPy wheels each ship an OpenBLAS; conftest.py pins it to one thread
+    threads = blas_threads()
+    assert len(threads) >= 1 and all(n == 1 for n in threads.values())
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc/self/maps")
 def test_unpinned_process_is_brought_to_one_thread():
     before, after = _probe(None)
     assert before and all(1 <= n <= (os.cpu_count() or 1) for n in before.values())
     assert after == {p: 1 for p in before}
     before, after = _probe("1")
     assert before == after == {p: 1 for p in before}
-
-
-def test_set_blas_threads_returns_the_previous_counts():
-    import numpy  # noqa: F401
-    import scipy.linalg  # noqa: F401
-
-    start = blas_threads()   # conftest.py pins BLAS to one thread before NumPy loads
-    assert all(n == 1 for n in start.values())
-    try:
-        assert set_blas_threads(1) == start
-        with pytest.raises(ValueError, match="`threads`"):
-            set_blas_threads(0)
-        with pytest.raises(ValueError, match="`threads`"):
-            set_blas_threads(True)
-    finally:
-        set_blas_threads(1)
-    assert blas_threads() == start
