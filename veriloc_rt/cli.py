@@ -194,7 +194,7 @@ def cmd_scene(args) -> int:
     from .world.geometry import build_geometry
 
     cfg = _load(args.config)
-    if args.osm is not None or args.bbox is not None or args.radius is not None:
+    if cfg.scene.osm or args.osm is not None or args.bbox is not None or args.radius is not None:
         return _scene_osm(cfg, args)
     out = _out(args.out)
     geo = build_geometry(cfg, out)
