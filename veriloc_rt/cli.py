@@ -210,7 +210,8 @@ def _scene_osm(cfg, args) -> int:
     --bbox and --radius) and write the scene, scene.json, streets.json and a top view."""
     from .config import config_from_dict, config_to_dict
     from .report.osm_plot import plot_osm_top_view
-    from .world.scene.osm import read_osm, write_osm_scene
+    from .world.scene.osm import read_osm
+    from .world.scene.osm_write import write_osm_scene
 
     data = config_to_dict(cfg)
     for key, flag, value in (("osm", "--osm", args.osm), ("osm_bbox_deg", "--bbox", args.bbox),

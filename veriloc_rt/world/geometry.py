@@ -18,7 +18,7 @@ from ..rng import stream
 from .scene.canyon import UrbanCanyon, urban_canyon
 from .scene.export import scene_bounds, write_scene
 from .scene.external import MeshScene
-from .scene.osm import osm_scene
+from .scene.osm_write import osm_scene
 from .topology import HexLayout, hex_layout
 from .trajectory import (Trajectory, check_points, follower, generate_street_trajectory,
                          load_csv_trajectory)

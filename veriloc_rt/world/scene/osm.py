@@ -3,8 +3,9 @@
 Parsing is left to maintained libraries, which read local files only: ``osmnx`` for OSM XML
 (:func:`osmnx.features_from_xml`, no Overpass query, no geocoding) and ``pyrosm`` for PBF
 (:class:`pyrosm.OSM` on the file path; its download helpers are never called). Written here is
-only what neither does: the height rules, the material mapping, the local metric frame, the
-extrusion into closed meshes and the Sionna XML.
+only what neither does: the height rules, the material mapping, the local metric frame and the
+extrusion into closed meshes (here), the Sionna XML and the run's cache
+(:mod:`veriloc_rt.world.scene.osm_write`).
 
 * Heights (OSM wiki, Key:height and Key:building:levels): ``height`` in metres unless a unit
   says otherwise (``"12 m"``, ``"40'"``, ``"40 ft"``, ``12'6"``); else ``building:levels`` x the
@@ -27,9 +28,7 @@ extrusion into closed meshes and the Sionna XML.
 from __future__ import annotations
 
 import functools
-import hashlib
 import io
-import json
 import logging
 import math
 import re
@@ -39,9 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError
-from ...fileio import atomic_write_text
 from ...inputs import check_path, read_bytes
-from .export import SCENE_FILE, write_ply
 
 log = logging.getLogger(__name__)
 
@@ -55,8 +52,8 @@ MATERIAL_BY_BUILDING = {
     **dict.fromkeys(("residential", "house", "apartments", "detached", "semidetached_house",
                      "terrace", "dormitory", "bungalow", "farm"), "brick"),
     **dict.fromkeys(("commercial", "office", "retail", "hotel", "supermarket"), "glass"),
-    **dict.fromkeys(("industrial", "warehouse", "hangar", "garage", "garages", "hangar",
-                     "storage_tank"), "metal"),
+    **dict.fromkeys(("industrial", "warehouse", "hangar", "garage", "garages", "storage_tank"),
+                    "metal"),
     **dict.fromkeys(("cabin", "hut", "shed", "barn"), "wood"),
 }
 #: material of every other ``building`` value (``yes``, public, school, church, ...)
@@ -71,8 +68,6 @@ HIGHWAYS = ("motorway", "motorway_link", "trunk", "trunk_link", "primary", "prim
             "track")
 #: footprints smaller than this are dropped, m^2 (mapping slivers; no room for a wall pair)
 MIN_FOOTPRINT_M2 = 1.0
-#: the ground plane extends this far beyond the buildings and streets, m
-GROUND_MARGIN_M = 20.0
 #: largest extract read, bytes (pyrosm holds the decoded extract in memory)
 MAX_OSM_BYTES = 1 << 30
 #: OSM stores coordinates as integers of 1e-7 degree: shared nodes have identical values
@@ -220,7 +215,8 @@ def extrude(polygon, height: float) -> tuple[np.ndarray, np.ndarray]:
 
 # -- reading ----------------------------------------------------------------------------------
 
-def _kind(path: Path, field: str) -> str:
+def check_kind(path: Path, field: str) -> str:
+    """``"pbf"`` or ``"xml"`` by the file name; InputError for any other extension."""
     name = path.name.lower()
     if name.endswith(".pbf"):
         return "pbf"
@@ -289,8 +285,10 @@ def _read_xml(path: Path, field: str):
 
 
 def _column(gdf, name: str) -> list:
-    return list(gdf[name]) if gdf is not None and name in gdf.columns else [None] * (
-        0 if gdf is None else len(gdf))
+    """A tag column as a list (None per row when no feature carries the tag)."""
+    if gdf is None:
+        return []
+    return list(gdf[name]) if name in gdf.columns else [None] * len(gdf)
 
 
 def _present(v) -> bool:
@@ -311,7 +309,7 @@ def read_osm(path, field: str = "scene.osm", *, bbox_deg=None, radius_m: float =
     import shapely
 
     p = check_path(path, field)
-    kind = _kind(p, field)
+    kind = check_kind(p, field)
     data = read_bytes(p, field, "OpenStreetMap extract", MAX_OSM_BYTES)
     _check_content(data, kind, p, field)
     if bbox_deg is not None:
@@ -339,7 +337,10 @@ def read_osm(path, field: str = "scene.osm", *, bbox_deg=None, radius_m: float =
     lon0, lat0 = round(float(lon0), 9), round(float(lat0), 9)
     crs = local_crs(lon0, lat0)
     fwd = _transformer("EPSG:4326", crs)
-    project = lambda g: shapely.transform(g, lambda c: np.stack(fwd.transform(c[:, 0], c[:, 1]), -1))  # noqa: E731
+
+    def project(geom):
+        return shapely.transform(geom, lambda c: np.stack(fwd.transform(c[:, 0], c[:, 1]), -1))
+
     heights_t, levels_t = _column(buildings, "height"), _column(buildings, "building:levels")
     kinds = _column(buildings, "building")
     origin = shapely.Point(0.0, 0.0)
@@ -420,95 +421,3 @@ def _street_graph(ways, fwd, bbox_deg, radius_m: float) -> tuple[np.ndarray, np.
     pairs = np.unique(np.sort(pairs, axis=1), axis=0)
     used, new = np.unique(pairs, return_inverse=True)
     return xy[used], new.reshape(-1, 2).astype(np.int64)
-
-
-# -- writing ----------------------------------------------------------------------------------
-
-def write_osm_scene(city: OsmCity, out_dir, *, ground_material: str = "medium_dry_ground",
-                    thickness_m: float = 0.3, meta: dict | None = None) -> Path:
-    """Write ``scene.xml`` (one PLY per building material, a ground plane), ``scene.json`` (frame
-    and provenance) and ``streets.json`` (the street graph) into ``out_dir``.
-
-    :returns: path of the XML file, loadable with ``sionna.rt.load_scene``
-    """
-    out = Path(out_dir)
-    (out / "meshes").mkdir(parents=True, exist_ok=True)
-    meshes = city.building_meshes()
-    mats = sorted(set(city.materials.tolist()))
-    lines = ['<scene version="2.1.0">', ""]
-    for mat in mats + ["ground"]:
-        itu = ground_material if mat == "ground" else mat
-        lines += [f'\t<bsdf type="itu-radio-material" id="{mat}_material">',
-                  f'\t\t<string name="type" value="{itu}"/>',
-                  f'\t\t<float name="thickness" value="{thickness_m:.6g}"/>', "\t</bsdf>"]
-    lines.append("")
-    for mat in mats:
-        sel = [m for m, name in zip(meshes, city.materials) if name == mat]
-        offs = np.cumsum([0] + [len(v) for v, _ in sel])
-        v = np.concatenate([v for v, _ in sel])
-        f = np.concatenate([f + o for (_, f), o in zip(sel, offs[:-1])])
-        write_ply(out / "meshes" / f"buildings_{mat}.ply", v, f)
-    x0, y0, x1, y1 = city.extent()
-    g = GROUND_MARGIN_M
-    gv = np.array([[x0 - g, y0 - g, 0.0], [x1 + g, y0 - g, 0.0], [x1 + g, y1 + g, 0.0],
-                   [x0 - g, y1 + g, 0.0]])
-    write_ply(out / "meshes" / "ground.ply", gv, np.array([[0, 1, 2], [0, 2, 3]]))
-    for name, mat in [(f"buildings_{m}", m) for m in mats] + [("ground", "ground")]:
-        lines += [f'\t<shape type="ply" id="mesh-{name}">',
-                  f'\t\t<string name="filename" value="meshes/{name}.ply"/>',
-                  '\t\t<boolean name="face_normals" value="true"/>',
-                  f'\t\t<ref id="{mat}_material" name="bsdf"/>', "\t</shape>"]
-    lines += ["</scene>", ""]
-    streets = {"nodes": np.round(city.street_nodes, 4).tolist(),
-               "edges": city.street_edges.tolist()}
-    atomic_write_text(out / "streets.json", json.dumps(streets, separators=(",", ":")) + "\n")
-    info = {"format_version": FORMAT_VERSION, "crs": city.crs,
-            "origin_lonlat_deg": list(city.origin_lonlat_deg),
-            "frame": "x east, y north, z up, m; transverse Mercator centred on origin_lonlat_deg",
-            "num_buildings": city.num_buildings,
-            "height_rules": {r: int(np.sum(city.height_rules == r))
-                             for r in ("height", "levels", "default")},
-            "materials": {m: int(np.sum(city.materials == m)) for m in mats},
-            "ground_material": ground_material, "thickness_m": thickness_m,
-            "ground_xy_m": [x0 - g, y0 - g, x1 + g, y1 + g],
-            "num_street_nodes": len(city.street_nodes),
-            "num_street_edges": len(city.street_edges), "highways": list(HIGHWAYS),
-            **(meta or {})}
-    atomic_write_text(out / "scene.json", json.dumps(info, indent=2) + "\n")
-    xml = out / SCENE_FILE
-    atomic_write_text(xml, "\n".join(lines))
-    return xml
-
-
-def osm_scene(path, out_dir, *, field: str = "scene.osm", bbox_deg=None, radius_m: float = 0.0,
-              storey_m: float = STOREY_M, default_height_m: float = DEFAULT_HEIGHT_M,
-              ground_material: str = "medium_dry_ground",
-              thickness_m: float = 0.3) -> tuple[Path, OsmCity | None]:
-    """Import ``path`` into ``out_dir``, or reuse the scene already there when it was built from
-    the same extract (SHA-256) with the same settings.
-
-    :returns: the XML path and the city (None when reused)
-    """
-    p = check_path(path, field)
-    _kind(p, field)
-    digest = hashlib.sha256(read_bytes(p, field, "OpenStreetMap extract", MAX_OSM_BYTES)).hexdigest()
-    meta = {"source": str(p), "source_sha256": digest,
-            "bbox_deg": list(bbox_deg) if bbox_deg is not None else None,
-            "radius_m": radius_m, "storey_m": storey_m, "default_height_m": default_height_m}
-    out = Path(out_dir)
-    xml = out / SCENE_FILE
-    try:
-        old = json.loads((out / "scene.json").read_text())
-    except (OSError, ValueError):
-        old = None
-    keys = list(meta) + ["format_version", "ground_material", "thickness_m"]
-    now = {**meta, "format_version": FORMAT_VERSION, "ground_material": ground_material,
-           "thickness_m": thickness_m}
-    if (isinstance(old, dict) and xml.exists()
-            and all(old.get(k) == now[k] for k in keys if k != "source")):
-        log.info("OSM scene reused from %s", out)
-        return xml, None
-    city = read_osm(p, field, bbox_deg=bbox_deg, radius_m=radius_m, storey_m=storey_m,
-                    default_height_m=default_height_m)
-    return write_osm_scene(city, out, ground_material=ground_material, thickness_m=thickness_m,
-                           meta=meta), city

