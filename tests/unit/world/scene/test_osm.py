@@ -439,3 +439,18 @@ def test_imported_scene_traces_los_where_geometry_says(tmp_path):
     for i, r in enumerate(rxs[:4]):
         d = np.linalg.norm(r - tx)
         assert math.isclose(tau[i][valid[i]][0], d / SPEED_OF_LIGHT, rel_tol=1e-6, abs_tol=1e-12)
+
+
+def test_imported_materials_checked_against_the_carrier():
+    """ITU-R P.2040-3 Table 3 fits brick over 1-40 GHz: an import (which may hold brick) is
+    refused at 50 GHz, accepted at 3.5 GHz, before the extract is read."""
+    from veriloc_rt.config import config_from_dict
+    from veriloc_rt.errors import InputError
+    from veriloc_rt.sim.checks import check_materials
+
+    scene = {"osm": str(TEST_PBF)}
+    check_materials(config_from_dict({"scene": scene,
+                                      "propagation": {"carrier_frequency_hz": 3.5e9}}))
+    with pytest.raises(InputError, match=r"scene.osm: ITU material 'brick' is defined for 1-40"):
+        check_materials(config_from_dict({"scene": scene,
+                                          "propagation": {"carrier_frequency_hz": 50e9}}))
