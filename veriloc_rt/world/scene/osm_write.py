@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...fileio import atomic_write_text
+from ...fileio import atomic_files, atomic_write_text
 from ...inputs import check_path, read_bytes
 from .export import SCENE_FILE, write_ply
 from .osm import (DEFAULT_HEIGHT_M, FORMAT_VERSION, HIGHWAYS, MAX_OSM_BYTES, STOREY_M, OsmCity,
@@ -112,5 +112,13 @@ def osm_scene(path, out_dir, *, field: str = "scene.osm", bbox_deg=None, radius_
         return xml, None
     city = read_osm(p, field, bbox_deg=bbox_deg, radius_m=radius_m, storey_m=storey_m,
                     default_height_m=default_height_m)
-    return write_osm_scene(city, out, ground_material=ground_material, thickness_m=thickness_m,
-                           meta=meta), city
+    # the old index goes first and the new one comes after every other file: a stop in
+    # between leaves no scene.xml, so nothing half-written is reused
+    xml.unlink(missing_ok=True)
+    with atomic_files(out) as tmp:
+        new = write_osm_scene(city, tmp, ground_material=ground_material,
+                              thickness_m=thickness_m, meta=meta)
+        index = new.read_text()
+        new.unlink()
+    atomic_write_text(xml, index)
+    return xml, city
