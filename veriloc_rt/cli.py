@@ -235,12 +235,64 @@ def cmd_scene(args) -> int:
     from .world.geometry import build_geometry
 
     cfg = _load(args.config)
+    if cfg.scene.osm or args.osm is not None or args.bbox is not None or args.radius is not None:
+        return _scene_osm(cfg, args)
     out = _out(args.out)
     geo = build_geometry(cfg, out)
     png = plot_top_view(geo, out / "scene_top_view.png")
     nb = getattr(geo.scene, "num_buildings", None)
     print(f"wrote {geo.scene_xml}" + (f" ({nb} buildings)" if nb is not None else "")
           + f" and {png}")
+    return 0
+
+
+def _scene_osm(cfg, args) -> int:
+    """``scene --osm FILE``: import the extract (the config's scene.osm_* fields, overridden by
+    --bbox and --radius) and write the scene, scene.json, streets.json and a top view."""
+    from .config import config_from_dict, config_to_dict
+    from .report.osm_plot import plot_osm_top_view
+    from .world.scene.osm import read_osm
+    from .world.scene.osm_write import write_osm_scene
+
+    data = config_to_dict(cfg)
+    for key, flag, value in (("osm", "--osm", args.osm), ("osm_bbox_deg", "--bbox", args.bbox),
+                             ("osm_radius_m", "--radius", args.radius)):
+        if value is not None:
+            data["scene"][key] = value
+            data["scene"]["source"] = "canyon"
+    try:
+        sc = config_from_dict(data).scene
+    except InputError as exc:   # name the flag that set the field
+        flags = {"scene.osm": args.osm, "scene.osm_bbox_deg": args.bbox,
+                 "scene.osm_radius_m": args.radius}
+        names = {"scene.osm": "--osm", "scene.osm_bbox_deg": "--bbox",
+                 "scene.osm_radius_m": "--radius"}
+        if flags.get(exc.field) is None:
+            raise
+        raise InputError(names[exc.field], exc.problem) from None
+    if not sc.osm:
+        raise InputError("--osm", "--bbox and --radius crop an extract: give it with --osm FILE "
+                         "(or scene.osm in the config)")
+    out = _out(args.out)
+    t = time.perf_counter()
+    city = read_osm(sc.osm, "--osm" if args.osm is not None else "scene.osm",
+                    bbox_deg=sc.osm_bbox_deg or None, radius_m=sc.osm_radius_m,
+                    storey_m=sc.osm_storey_m, default_height_m=sc.osm_default_height_m)
+    t_read = time.perf_counter() - t
+    xml = write_osm_scene(city, out, ground_material=sc.ground_material,
+                          thickness_m=sc.material_thickness_m,
+                          meta={"source": sc.osm, "bbox_deg": list(sc.osm_bbox_deg) or None,
+                                "radius_m": sc.osm_radius_m})
+    t_write = time.perf_counter() - t - t_read
+    png = plot_osm_top_view(city, out / "scene_top_view.png")
+    rules = {r: int((city.height_rules == r).sum()) for r in ("height", "levels", "default")}
+    mats = ", ".join(f"{m} {int((city.materials == m).sum())}"
+                     for m in sorted(set(city.materials.tolist())))
+    print(f"{city.num_buildings} buildings (height from: tag {rules['height']}, levels "
+          f"{rules['levels']}, default {rules['default']}; {mats}), {len(city.street_nodes)} "
+          f"street nodes, {len(city.street_edges)} edges; read in {t_read:.2f} s (with the parser's "
+          f"import), meshed and written in {t_write:.2f} s")
+    print(f"wrote {xml}, {out / 'scene.json'}, {out / 'streets.json'} and {png}")
     return 0
 
 
@@ -445,6 +497,13 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")
     s.add_argument("--out", required=True, help="output folder")
+    s.add_argument("--osm", metavar="FILE", help="import a local OpenStreetMap extract (.osm XML "
+                   "or .osm.pbf) instead (scene.osm); also writes scene.json and streets.json")
+    s.add_argument("--bbox", type=float, nargs=4,
+                   metavar=("LON_MIN", "LAT_MIN", "LON_MAX", "LAT_MAX"),
+                   help="crop the extract to this box, degrees (scene.osm_bbox_deg)")
+    s.add_argument("--radius", type=float, metavar="M", help="keep the buildings within M "
+                   "metres of the frame's centre (scene.osm_radius_m)")
     s.set_defaults(func=cmd_scene)
     k = sub.add_parser("keys", help="generate key files (AES, HMAC, Ed25519) for every BS")
     k.add_argument("config", nargs="?", help="JSON config file (decides how many BSs)")

@@ -28,6 +28,19 @@ def test_the_run_modules_load_no_chain_only_package():
     assert r.stdout.strip() == "", r.stdout
 
 
+#: loaded by the OpenStreetMap import only (veriloc_rt.world.scene.osm imports them on use)
+OSM_ONLY = ("osmnx", "pyrosm", "pyproj", "shapely", "geopandas")
+
+
+def test_the_run_modules_load_no_osm_package():
+    code = ("import sys, veriloc_rt.cli, veriloc_rt.sim.engine, veriloc_rt.sim.checks, "
+            "veriloc_rt.world.geometry, veriloc_rt.world.scene.osm; "
+            f"print(' '.join(m for m in {OSM_ONLY!r} if m in sys.modules))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                       check=True)
+    assert r.stdout.strip() == "", r.stdout
+
+
 #: chdtri inverts the regularised incomplete gamma function iteratively: agreement with the
 #: closed forms to ~1e-14 relative (1.9e-14 measured for k = 1); 1e-10 is ample
 CHI2_RTOL = 1e-10

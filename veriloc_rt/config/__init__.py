@@ -138,8 +138,10 @@ def with_overrides(cfg: Config, *, points: int | None = None, seed: int | None =
 
 def _resolve_paths(cfg: Config, base: Path) -> Config:
     scene, traj, sec = cfg.scene, cfg.trajectory, cfg.security
-    if not scene.is_canyon and not Path(scene.source).is_absolute():
+    if not scene.is_canyon and not scene.osm and not Path(scene.source).is_absolute():
         scene = dataclasses.replace(scene, source=str((base / scene.source).resolve()))
+    if scene.osm and not Path(scene.osm).is_absolute():
+        scene = dataclasses.replace(scene, osm=str((base / scene.osm).resolve()))
     if traj.source != "generator" and not Path(traj.source).is_absolute():
         traj = dataclasses.replace(traj, source=str((base / traj.source).resolve()))
     if sec.keys_dir and not Path(sec.keys_dir).is_absolute():

@@ -84,12 +84,43 @@ class SceneConfig:
                                  choices=("concrete", "very_dry_ground", "medium_dry_ground",
                                           "wet_ground", "marble", "metal"))
     material_thickness_m: float = param(0.3, "slab thickness of the materials", lo=0.001, hi=10.0)
+    osm: str = param("", "path to a local OpenStreetMap extract (.osm XML or .osm.pbf); when set, "
+                     "the run builds the scene from it (buildings extruded, ITU materials by "
+                     "building type, streets.json; docs/osm-import.md) into its scene/ folder, "
+                     "rebuilt only when the extract or the osm_* fields change; scene.source "
+                     "stays 'canyon'")
+    osm_bbox_deg: tuple[float, ...] = param((), "crop of the OSM extract: [lon_min, lat_min, "
+                                            "lon_max, lat_max] in degrees (WGS84); the "
+                                            "frame is centred on it; [] for none")
+    osm_radius_m: float = param(0.0, "crop of the OSM extract: keep the buildings within this "
+                                "distance of the frame's centre (0: none)", lo=0.0, hi=50000.0)
+    osm_storey_m: float = param(3.0, "height per building:levels storey of an OSM building "
+                                "without a height tag (TR 38.901 Table 7.2-1's 3 m floors)",
+                                lo=1.0, hi=20.0)
+    osm_default_height_m: float = param(10.0, "height of an OSM building with neither height "
+                                        "nor building:levels (a convention)", lo=1.0, hi=500.0)
 
     @property
     def is_canyon(self) -> bool:
-        return self.source == "canyon"
+        return self.source == "canyon" and not self.osm
 
     def validate(self, path: str) -> None:
+        if self.osm:
+            check_path(self.osm, f"{path}.osm")
+            if self.source != "canyon":
+                raise bad_value(f"{path}.source", self.source, "'canyon' when scene.osm is set "
+                                "(the OSM extract is the scene)")
+            name = self.osm.lower()
+            if not name.endswith((".osm", ".osm.xml", ".pbf")):
+                raise bad_value(f"{path}.osm", self.osm, "a path ending in .osm (XML) or "
+                                ".osm.pbf")
+        b = self.osm_bbox_deg
+        if b and (len(b) != 4 or not (-180 <= b[0] < b[2] <= 180 and -90 <= b[1] < b[3] <= 90)):
+            raise bad_value(f"{path}.osm_bbox_deg", list(b), "[] or [lon_min, lat_min, lon_max, "
+                            "lat_max] with -180 <= lon_min < lon_max <= 180 and -90 <= lat_min "
+                            "< lat_max <= 90")
+        if self.osm:
+            return
         if not self.is_canyon:
             check_path(self.source, f"{path}.source")
         if not self.is_canyon and not self.source.endswith(".xml"):

@@ -23,6 +23,7 @@ from ..errors import InputError
 from ..phy.security.keys import load_keys
 from ..world.geometry import Geometry, build_geometry
 from ..world.scene.export import scene_itu_materials
+from ..world.scene.osm import OSM_MATERIALS
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +101,16 @@ def check_materials(cfg: Config) -> None:
             problem = itu_material_problem(getattr(cfg.scene, name), f)
             if problem:
                 raise InputError(f"scene.{name}", f"{problem} (propagation.carrier_frequency_hz)")
+        return
+    if cfg.scene.osm:
+        for name in OSM_MATERIALS:
+            problem = itu_material_problem(name, f)
+            if problem:
+                raise InputError("scene.osm", f"{problem} (OSM buildings map to "
+                                 f"{', '.join(OSM_MATERIALS)}; propagation.carrier_frequency_hz)")
+        problem = itu_material_problem(cfg.scene.ground_material, f)
+        if problem:
+            raise InputError("scene.ground_material", f"{problem} (propagation.carrier_frequency_hz)")
         return
     for name in scene_itu_materials(cfg.scene.source):
         problem = itu_material_problem(name, f)

@@ -18,6 +18,7 @@ from ..rng import stream
 from .scene.canyon import UrbanCanyon, urban_canyon
 from .scene.export import scene_bounds, write_scene
 from .scene.external import MeshScene
+from .scene.osm_write import osm_scene
 from .topology import HexLayout, hex_layout
 from .trajectory import (Trajectory, check_points, follower, generate_street_trajectory,
                          load_csv_trajectory)
@@ -63,15 +64,32 @@ def build_trajectory(cfg: Config, scene) -> Trajectory:
     return ue
 
 
+def osm_scene_xml(scfg, scene_dir: str | Path) -> Path:
+    """The scene imported from ``scene.osm`` into ``scene_dir`` (reused when already there)."""
+    xml, city = osm_scene(scfg.osm, scene_dir, bbox_deg=scfg.osm_bbox_deg or None,
+                          radius_m=scfg.osm_radius_m, storey_m=scfg.osm_storey_m,
+                          default_height_m=scfg.osm_default_height_m,
+                          ground_material=scfg.ground_material,
+                          thickness_m=scfg.material_thickness_m)
+    if city is not None:
+        log.info("OSM: %d buildings, %d street nodes from %s", city.num_buildings,
+                 len(city.street_nodes), scfg.osm)
+    return xml
+
+
 def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
     """Build (and write, for the canyon) the scene, the layout and both trajectories.
 
     :param scene_dir: where the canyon's XML + PLY files go
     """
     full = None
+    xml = None
     if cfg.scene.is_canyon:
         full = urban_canyon(cfg.scene, stream(cfg.seed, "scene-heights"))
         scene = full
+    elif cfg.scene.osm:
+        xml = osm_scene_xml(cfg.scene, scene_dir)
+        scene = MeshScene.from_xml(xml, "scene.osm")
     else:
         scene = MeshScene.from_xml(cfg.scene.source)
     ue = build_trajectory(cfg, scene)
@@ -90,7 +108,7 @@ def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
         log.info("canyon: %d of %d buildings within %.0f m of the BSs and the trajectory",
                  cropped.num_buildings, full.num_buildings, cfg.scene.margin_m)
         scene = cropped
-    else:
+    elif xml is None:
         xml = Path(cfg.scene.source)
     return Geometry(scene_xml=Path(xml), scene=scene, full_canyon=full, layout=layout,
                     bs_pos=bs_pos, serving=serving, ue=ue, adversary=adv)
