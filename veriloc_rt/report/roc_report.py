@@ -1,0 +1,107 @@
+"""The detection analysis on disk: ``roc.csv``, ``roc.png`` and the text summary of it.
+
+``roc.csv`` (:data:`~veriloc_rt.report.detection.ROC_COLUMNS`): one row per ROC vertex of each
+decision (the five detectors, ``KofN``, ``NPFusion``) and attack, in the order the curve runs
+from accept-all to reject-all. ``roc.png``: one panel per attack, false-alarm rate
+``1 - benign_accept`` against detection rate ``attack_reject`` (Fawcett 2006's axes), a curve
+per decision, the configured threshold's operating point marked.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from ..detectors.outcomes import DETECTORS
+from ..fileio import atomic_output
+from .detection import FUSED, ROC_COLUMNS, DetectionAnalysis
+from .plots import figure
+
+__all__ = ["LABELS", "format_detection", "plot_roc", "write_roc_csv"]
+
+#: display label and colour of each decision (the single detectors' as in the other plots)
+LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
+          "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
+          "Tracking": ("Tracking", (0.3, 0.3, 0.3)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
+          "NPFusion": ("NP fusion (test half)", (0.0, 0.55, 0.0))}
+
+
+def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
+    """Write every curve's vertices (floats exact, ``inf`` for an unbounded threshold)."""
+    path = Path(path)
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(ROC_COLUMNS)
+        for name, attack, t, b, a in analysis.roc_rows():
+            w.writerow([name, attack, repr(t), repr(b), repr(a)])
+    return path
+
+
+def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = None) -> Path:
+    """One panel per attack: the ROC of each decision, its configured operating point as a
+    marker, the AUC in the legend; uninformative detectors dashed."""
+    m = analysis.metrics
+    attacks = list(m["attacks"])
+    k = m["fusion"]["k"]
+    path = Path(path)
+    with figure(path, title, ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
+                squeeze=False) as (_, axes):
+        for ax, s in zip(axes[0], attacks):
+            for name in (*DETECTORS, *FUSED):
+                c = analysis.curves.get((name, s))
+                if c is None:
+                    continue
+                label, colour = LABELS[name]
+                label = label.replace("k-of-5", f"{k}-of-5")
+                ls = "--" if name in analysis.uninformative else "-"
+                ax.plot(c.false_alarm, c.attack_reject, ls, color=colour, lw=1.4,
+                        drawstyle="default",
+                        label=f"{label} {m['attacks'][s][name]['auc']:.3f}"
+                        + (" (uninf.)" if name in analysis.uninformative else ""))
+                _, ba, ar = analysis.operating[(name, s)]
+                ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
+            ax.plot([0, 1], [0, 1], ":", color="0.6", lw=0.8)
+            ax.set(xlim=(-0.02, 1.02), ylim=(-0.02, 1.02), title=s,
+                   xlabel="false alarm 1 - benign acceptance", ylabel="detection (attack rejected)")
+            ax.set_aspect("equal")
+            ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
+                      loc="lower right")
+    return path
+
+
+def format_detection(roc: dict) -> str:
+    """The ``roc`` block of metrics.json as text: AUC and operating point per decision and
+    attack, the uninformative detectors, and the fused decisions against the best single one."""
+    names = [n for n in (*DETECTORS, *FUSED) if n in roc["detectors"]]
+    short = {**{d: LABELS[d][0] for d in DETECTORS}, "KofN": f"{roc['fusion']['k']}-of-5",
+             "NPFusion": "NP fusion"}
+    head = "ROC          " + " ".join(f"{short[n]:>15s}" for n in names)
+    lines = [head + "   (AUC  benign-accept/attack-reject % at the configured threshold)"]
+    for s, per in roc["attacks"].items():
+        cells = []
+        for n in names:
+            e = per.get(n)
+            cells.append(f"{'n/a':>15s}" if e is None else
+                         f"{e['auc']:5.3f} {100 * e['benign_accept']:4.0f}/"
+                         f"{100 * e['attack_reject']:<4.0f}")
+        lines.append(f"{s:12s} " + " ".join(f"{c:>15s}" for c in cells))
+    if roc["uninformative"]:
+        lines.append(f"uninformative (accept < {100 * roc['min_benign_accept']:.0f} % of benign "
+                     "fixes at their threshold; their attack rejections are no detections): "
+                     + ", ".join(f"{d} ({100 * roc['detectors'][d]['benign_accept']:.1f} %)"
+                                 for d in roc["uninformative"]))
+    f = roc["fusion"]
+    if "test" in f:
+        lines.append(f"fused on the test half ({f['test_indices']} of "
+                     f"{f['test_indices'] + f['train_indices']} indices), detection % at "
+                     f"false alarm <= {100 * f['false_alarm']:g} %:")
+        for s, t in f["test"].items():
+            b = t["best_single"]
+            lines.append(f"  {s:11s} NP fusion {100 * t['NPFusion']['attack_reject']:5.1f} "
+                         f"(false alarm {100 * t['NPFusion']['false_alarm']:4.1f}, AUC "
+                         f"{t['NPFusion']['auc']:.3f})  {f['k']}-of-5 best "
+                         f"{100 * t['KofN']['attack_reject']:5.1f}  best single {b} "
+                         f"{100 * t[b]['attack_reject']:5.1f} (AUC {t[b]['auc']:.3f}, oracle "
+                         "threshold)")
+    return "\n".join(lines)
+
