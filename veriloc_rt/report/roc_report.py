@@ -4,7 +4,8 @@
 decision (the five detectors, ``KofN``, ``NPFusion``) and attack, in the order the curve runs
 from accept-all to reject-all. ``roc.png``: one panel per attack, false-alarm rate
 ``1 - benign_accept`` against detection rate ``attack_reject`` (Fawcett 2006's axes), a curve
-per decision, the configured threshold's operating point marked.
+per decision, the configured threshold's operating point marked; the x axis is linear up to
+1 % false alarms and logarithmic above, since the operating points crowd near 0.
 """
 
 from __future__ import annotations
@@ -12,18 +13,28 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import numpy as np
+
 from ..detectors.outcomes import DETECTORS
 from ..fileio import atomic_output
 from .detection import FUSED, ROC_COLUMNS, DetectionAnalysis
 from .plots import figure
 
-__all__ = ["LABELS", "format_detection", "plot_roc", "write_roc_csv"]
+__all__ = ["LABELS", "ROC_TITLE", "format_detection", "plot_roc", "write_roc_csv"]
+
+#: roc.png's title
+ROC_TITLE = ("ROC per attack (o: configured threshold; AUC in the legend; x linear below 0.01, "
+             "log above)")
 
 #: display label and colour of each decision (the single detectors' as in the other plots)
 LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
           "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
           "Tracking": ("Tracking", (0.3, 0.3, 0.3)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
           "NPFusion": ("NP fusion (test half)", (0.0, 0.55, 0.0))}
+
+
+#: false-alarm rate up to which roc.png's x axis is linear (logarithmic above)
+_LINEAR_FA = 0.01
 
 
 def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
@@ -60,10 +71,14 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
                         + (" (uninf.)" if name in analysis.uninformative else ""))
                 _, ba, ar = analysis.operating[(name, s)]
                 ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
-            ax.plot([0, 1], [0, 1], ":", color="0.6", lw=0.8)
-            ax.set(xlim=(-0.02, 1.02), ylim=(-0.02, 1.02), title=s,
-                   xlabel="false alarm 1 - benign acceptance", ylabel="detection (attack rejected)")
-            ax.set_aspect("equal")
+            chance = np.linspace(0.0, 1.0, 201)
+            ax.plot(chance, chance, ":", color="0.6", lw=0.8)
+            # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
+            ax.set_xscale("symlog", linthresh=_LINEAR_FA, linscale=0.5)
+            ax.set_xticks([0.0, 0.01, 0.1, 1.0], ["0", "0.01", "0.1", "1"])
+            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02), title=s,
+                   xlabel="false alarm = 1 - benign acceptance",
+                   ylabel="detection (attack rejected)")
             ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
                       loc="lower right")
     return path
@@ -99,7 +114,7 @@ def format_detection(roc: dict) -> str:
             b = t["best_single"]
             lines.append(f"  {s:11s} NP fusion {100 * t['NPFusion']['attack_reject']:5.1f} "
                          f"(false alarm {100 * t['NPFusion']['false_alarm']:4.1f}, AUC "
-                         f"{t['NPFusion']['auc']:.3f})  {f['k']}-of-5 best "
+                         f"{t['NPFusion']['auc']:.3f})  vote at its best k "
                          f"{100 * t['KofN']['attack_reject']:5.1f}  best single {b} "
                          f"{100 * t[b]['attack_reject']:5.1f} (AUC {t[b]['auc']:.3f}, oracle "
                          "threshold)")

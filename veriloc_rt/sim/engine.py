@@ -37,7 +37,7 @@ from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import uma_propagation
 from ..report import plots
 from ..report.detection import analyse_detection
-from ..report.roc_report import plot_roc, write_roc_csv
+from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
 from ..report.paper import PAPER_RATES
 from ..report.propagation_summary import summarize
 from ..report.results import ResultsWriter, read_rows, results_path, scenario_metrics
@@ -216,7 +216,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
         if analysis is not None:
             write_roc_csv(out / "roc.csv", analysis)
             plot_roc(analysis, out / "roc.png",
-                     title="ROC per attack (o: configured threshold; AUC in the legend)")
+                     title=ROC_TITLE)
         write_run_json(out, cfg, "complete", timing, fields)
     return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
 
