@@ -251,12 +251,15 @@ ROC_DOC = {
                                "configured threshold's operating point, a vertex of the curve); "
                                "single detectors and `KofN` over every point, `NPFusion` over "
                                "the test indices",
-    "fusion": "`k`, `false_alarm`, `split_block` (`detectors.fusion`), `train_indices`, "
-              "`test_indices`, `np_threshold` (the NP score threshold from the benign training "
-              "points), `np_train_false_alarm`, and `test.<attack>`: on the test indices, each "
+    "fusion": "`k`, `false_alarm`, `split_block` (`detectors.fusion`), `fit_indices`, "
+              "`calibration_indices`, `test_indices` (the three parts of the split), "
+              "`np_threshold` (the NP score threshold from the calibration part's benign "
+              "points), `np_calibration_false_alarm` and `np_fit_false_alarm` (the share of "
+              "those and of the fitting part's benign points above it: the latter shows the "
+              "score's optimism on its own points), and `test.<attack>`: on the test indices, each "
               "decision's `auc` and its `attack_reject` at `false_alarm` <= the target (single "
               "detectors and `KofN` at their best threshold there, an oracle; `NPFusion` at its "
-              "trained threshold), and `best_single`",
+              "calibrated threshold), and `best_single`",
 }
 
 #: timing_s keys besides the chain stages

@@ -37,7 +37,8 @@ def check_statistics_and_roc(out, cfg) -> None:
         for r in _csv(out / f"{s}_results.csv"):
             for d in DETECTORS:
                 st = STATISTICS[d]
-                assert (r[d] == "1") == bool(accepts(float(r[st.column]), thr[d], st.accept)), (s, d, r)
+                ok = bool(accepts(float(r[st.column]), thr[d], st.accept))
+                assert (r[d] == "1") == ok, (s, d, r)
     metrics = json.loads((out / "metrics.json").read_text())
     if "none" not in cfg.run.scenarios or len(cfg.run.scenarios) < 2:
         return
@@ -86,8 +87,8 @@ def test_tiny_uma_run_statistics_roc_fusion_and_flag(tmp_path, capsys):
         assert t["best_single"] in DETECTORS
         assert 0.0 <= t["NPFusion"]["false_alarm"] <= 1.0
     f = roc["fusion"]
-    assert f["train_indices"] + f["test_indices"] == 32
-    assert f["np_train_false_alarm"] <= cfg.detectors.fusion.false_alarm
+    assert f["fit_indices"] + f["calibration_indices"] + f["test_indices"] == 32
+    assert f["np_calibration_false_alarm"] <= cfg.detectors.fusion.false_alarm
     # the vote's threshold is k - 1 rejections
     assert roc["detectors"]["KofN"]["threshold"] == cfg.detectors.fusion.k - 1
     with open(out / "roc.csv", newline="") as fh:

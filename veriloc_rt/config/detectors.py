@@ -84,11 +84,12 @@ class FusionConfig:
     k: int = param(3, "k-of-n voting: a point is rejected when at least k of the 5 detectors "
                    "reject it (3: majority)", lo=1, hi=5)
     false_alarm: float = param(0.05, "Neyman-Pearson fusion: the benign false-alarm rate its "
-                               "threshold is set for (on the training points)", lo=0.0,
+                               "threshold is set for (on held-out benign points)", lo=0.0,
                                lo_open=True, hi=0.5)
-    split_block: int = param(10, "the Neyman-Pearson fusion trains on half of the trajectory's "
-                             "blocks of this many consecutive points (drawn from the seed) and "
-                             "is evaluated on the other half", lo=1, hi=100_000)
+    split_block: int = param(10, "the Neyman-Pearson fusion splits the trajectory into blocks "
+                             "of this many consecutive points, dealt in a random order (from the "
+                             "seed) to three parts: fit, threshold, evaluation", lo=1,
+                             hi=100_000)
 
 
 @dataclass(frozen=True)

@@ -13,11 +13,11 @@ is :mod:`.roc`, the fusion's :mod:`.fusion`.
   everything);
 * ``KofN``: the number of rejecting detectors, valid iff ``<= k - 1`` (``detectors.fusion.k``),
   over every point (nothing is fitted);
-* ``NPFusion``: the naive-Bayes likelihood-ratio score fitted on the training blocks of the
-  trajectory (:func:`.fusion.split_by_index` with the named stream ``"fusion-split"``; the three
-  attacks pooled as the alternative: the defender does not know which attack comes), its
-  threshold at ``detectors.fusion.false_alarm`` on the benign training scores, and its ROC and
-  operating point on the *test* points only. ``fusion.test`` compares it, on those same test
+* ``NPFusion``: the trajectory's blocks split in three (:func:`.fusion.split_by_index` with the
+  named stream ``"fusion-split"``); the naive-Bayes likelihood-ratio score fitted on the first
+  third (the three attacks pooled as the alternative: the defender does not know which attack
+  comes), its threshold at ``detectors.fusion.false_alarm`` on the second third's benign
+  scores, its ROC and operating point on the last third (the *test* points) only. ``fusion.test`` compares it, on those same test
   points, with every single detector and the vote at their best threshold for that false-alarm
   rate (chosen on the test points: an oracle in the single detectors' favour).
 """
@@ -33,7 +33,7 @@ from ..config import Config
 from ..detectors.outcomes import DETECTORS
 from ..detectors.statistics import STATISTICS, accepts, configured_thresholds
 from ..rng import stream
-from .fusion import NaiveBayesLR, kofn_votes, np_threshold, split_by_index
+from .fusion import CALIBRATE, FIT, TEST, NaiveBayesLR, kofn_votes, np_threshold, split_by_index
 from .roc import RocCurve, auc, detection_at_false_alarm, operating_point, roc_curve
 
 log = logging.getLogger(__name__)
@@ -129,20 +129,26 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
             e = _entry(c, t, b, a_by[s])
             res.operating[(name, s)] = (t, e["benign_accept"], e["attack_reject"])
             res.metrics.setdefault("attacks", {}).setdefault(s, {})[name] = e
-    # -- Neyman-Pearson fusion: fit on the training blocks, evaluate on the others -----------
+    # -- Neyman-Pearson fusion: fit, calibrate and evaluate on three parts of the blocks -------
     n = max(r.index for r in every) + 1
-    train = split_by_index(n, stream(cfg.seed, "fusion-split"), det.fusion.split_block)
+    part = split_by_index(n, stream(cfg.seed, "fusion-split"), det.fusion.split_block)
     fusion: dict = {"k": k, "false_alarm": det.fusion.false_alarm,
                     "split_block": det.fusion.split_block,
-                    "train_indices": int(train.sum()), "test_indices": int((~train).sum())}
-    b_tr, b_te = benign.take(train[benign.index]), benign.take(~train[benign.index])
-    a_tr = np.concatenate([attack[s].stats[train[attack[s].index]] for s in attacks])
-    a_te = {s: attack[s].take(~train[attack[s].index]) for s in attacks}
-    if b_tr.index.size and a_tr.size and b_te.index.size and all(p.index.size for p in a_te.values()):
-        model = NaiveBayesLR(b_tr.stats, a_tr)
-        tau = np_threshold(model.score(b_tr.stats), det.fusion.false_alarm)
+                    "fit_indices": int((part == FIT).sum()),
+                    "calibration_indices": int((part == CALIBRATE).sum()),
+                    "test_indices": int((part == TEST).sum())}
+    b_fit, b_cal, b_te = (benign.take(part[benign.index] == p) for p in (FIT, CALIBRATE, TEST))
+    a_fit = np.concatenate([attack[s].stats[part[attack[s].index] == FIT] for s in attacks])
+    a_te = {s: attack[s].take(part[attack[s].index] == TEST) for s in attacks}
+    sizes = [b_fit.index.size, a_fit.size, b_cal.index.size, b_te.index.size,
+             *(p.index.size for p in a_te.values())]
+    if all(sizes):
+        model = NaiveBayesLR(b_fit.stats, a_fit)
+        s_cal = model.score(b_cal.stats)
+        tau = np_threshold(s_cal, det.fusion.false_alarm)
         fusion["np_threshold"] = tau
-        fusion["np_train_false_alarm"] = float((model.score(b_tr.stats) > tau).mean())
+        fusion["np_calibration_false_alarm"] = float((s_cal > tau).mean())
+        fusion["np_fit_false_alarm"] = float((model.score(b_fit.stats) > tau).mean())
         sb = model.score(b_te.stats)
         summary["NPFusion"] = {"statistic": "naive-Bayes log-likelihood ratio", "accept": "<=",
                                "threshold": tau, "benign_accept": float((sb <= tau).mean()),
@@ -158,7 +164,7 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
             test[s] = _test_comparison(b_te, a_te[s], sb, sa, tau, det.fusion.false_alarm)
         fusion["test"] = test
     else:
-        log.warning("NP fusion skipped: a class has no point on one side of the split")
+        log.warning("NP fusion skipped: a part of the split has no benign or no attack point")
     res.metrics = {"benign_points": int(benign.index.size),
                    "min_benign_accept": det.min_benign_accept, "detectors": summary,
                    "uninformative": list(res.uninformative),
@@ -168,7 +174,7 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
 
 def _test_comparison(b_te: _Points, a_te: _Points, sb, sa, tau: float, alpha: float) -> dict:
     """On the test points of one attack: each decision's AUC and its detection rate at
-    false-alarm rate <= alpha (the NP fusion at its trained threshold ``tau``; the others at
+    false-alarm rate <= alpha (the NP fusion at its calibrated threshold ``tau``; the others at
     their best vertex on these points, an oracle in their favour), and ``best_single``: the
     single detector with the highest such detection rate (then the highest AUC)."""
     out: dict = {}

@@ -1,4 +1,4 @@
-"""Fused decisions over the five detectors: k-of-n voting and a Neyman-Pearson likelihood-ratio test.
+"""Fused decisions over the five detectors: k-of-n voting, Neyman-Pearson likelihood-ratio test.
 
 **k-of-n voting** (Varshney 1997, "Distributed Detection and Data Fusion", Sec. 3.3, the
 counting rule): the fused point is rejected iff at least ``k`` of the ``n`` detectors reject it.
@@ -11,17 +11,23 @@ powerful test at false-alarm rate alpha thresholds the likelihood ratio
 Statistical Signal Processing, Vol. II", Theorem 3.1). The densities are unknown, so the score
 is a *naive-Bayes* estimate of ``log L``: the sum over detectors of
 ``log p_1(s_j) - log p_0(s_j)``, each factor a histogram of that detector's statistic on the
-training points (bin edges at the pooled training quantiles, a separate bin for ``inf``,
-add-one-half (Jeffreys) smoothing of the counts). The detectors are not independent, so the
+fitting points (bin edges at the pooled quantiles, a separate bin for ``inf``, add-one-half
+(Jeffreys) smoothing of the counts). For a binary statistic this is the Chair-Varshney fusion
+rule (Chair & Varshney 1986, IEEE Trans. AES 22(1)). The detectors are not independent, so the
 score is not the true likelihood ratio and the test is not the most powerful one; but its
-threshold is set on the *benign* training scores (the smallest score threshold whose training
-false-alarm share is at most alpha, no randomisation), so the false-alarm rate is controlled
-whatever the model error: the model only costs detection power. For a binary statistic this is
-the Chair-Varshney fusion rule (Chair & Varshney 1986, IEEE Trans. AES 22(1)).
+threshold is the empirical (1 - alpha) quantile of the scores of *held-out benign* points (the
+smallest threshold whose share of those scores above it is at most alpha, no randomisation),
+so the false-alarm rate is held whatever the model error: the model only costs detection power.
+This is the sample-splitting construction of Neyman-Pearson classification (Tong, Feng & Li
+2018, "Neyman-Pearson classification algorithms and NP receiver operating characteristics",
+Sci. Adv. 4: the class-0 scores that set the threshold are not those the score was fitted on;
+on its own fitting points the score is optimistic and the false alarm would be far above
+alpha on small runs).
 
-Fitting and evaluating on the same points would overstate both rates, so the points are split
-by trajectory index (:func:`split_by_index`): the score and its threshold come from the training
-indices, the ROC, AUC and operating point from the others.
+Fitting, calibrating and evaluating on the same points would overstate the rates, so the points
+are split by trajectory index into three parts (:func:`split_by_index`): :data:`FIT` (the
+histograms), :data:`CALIBRATE` (the threshold, benign points only) and :data:`TEST` (the ROC,
+AUC and operating point).
 """
 
 from __future__ import annotations
@@ -30,7 +36,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NaiveBayesLR", "kofn_votes", "np_threshold", "split_by_index"]
+__all__ = ["CALIBRATE", "FIT", "NaiveBayesLR", "TEST", "kofn_votes", "np_threshold",
+           "split_by_index"]
+
+#: the parts of :func:`split_by_index`: the score's fitting, the threshold's calibration, the
+#: evaluation
+FIT, CALIBRATE, TEST = 0, 1, 2
 
 #: histogram bins per statistic (at most; ties merge quantile edges)
 NUM_BINS = 12
@@ -47,18 +58,18 @@ def kofn_votes(valid) -> np.ndarray:
 
 
 def split_by_index(num_points: int, rng: np.random.Generator, block: int,
-                   train_fraction: float = 0.5) -> np.ndarray:
-    """[num_points] bool, True for the training indices: consecutive blocks of ``block``
-    indices (neighbouring points share the tracker's state and the channel, so a block keeps
-    them on one side), ``train_fraction`` of the blocks drawn at random for training."""
-    if num_points < 1 or block < 1 or not 0.0 < train_fraction < 1.0:
-        raise ValueError(f"Arguments `num_points` {num_points}, `block` {block} must be >= 1 "
-                         f"and `train_fraction` {train_fraction} in (0, 1)")
+                   num_parts: int = 3) -> np.ndarray:
+    """[num_points] int64, each index's part in ``0 .. num_parts - 1`` (:data:`FIT`,
+    :data:`CALIBRATE`, :data:`TEST`): consecutive blocks of ``block`` indices (neighbouring
+    points share the tracker's state and the channel, so a block keeps them in one part), the
+    blocks in a random order dealt to the parts in turn (part sizes differ by at most a block)."""
+    if num_points < 1 or block < 1 or num_parts < 1:
+        raise ValueError(f"Arguments `num_points` {num_points}, `block` {block} and "
+                         f"`num_parts` {num_parts} must be >= 1")
     num_blocks = -(-num_points // block)
-    chosen = rng.permutation(num_blocks)[:max(1, round(train_fraction * num_blocks))]
-    train_block = np.zeros(num_blocks, bool)
-    train_block[chosen] = True
-    return train_block[np.arange(num_points) // block]
+    part = np.empty(num_blocks, np.int64)
+    part[rng.permutation(num_blocks)] = np.arange(num_blocks) % num_parts
+    return part[np.arange(num_points) // block]
 
 
 @dataclass(frozen=True, eq=False)

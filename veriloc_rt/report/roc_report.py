@@ -30,7 +30,7 @@ ROC_TITLE = ("ROC per attack (o: configured threshold; AUC in the legend; x line
 LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
           "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
           "Tracking": ("Tracking", (0.3, 0.3, 0.3)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
-          "NPFusion": ("NP fusion (test half)", (0.0, 0.55, 0.0))}
+          "NPFusion": ("NP fusion (test third)", (0.0, 0.55, 0.0))}
 
 
 #: false-alarm rate up to which roc.png's x axis is linear (logarithmic above)
@@ -107,9 +107,11 @@ def format_detection(roc: dict) -> str:
                                  for d in roc["uninformative"]))
     f = roc["fusion"]
     if "test" in f:
-        lines.append(f"fused on the test half ({f['test_indices']} of "
-                     f"{f['test_indices'] + f['train_indices']} indices), detection % at "
-                     f"false alarm <= {100 * f['false_alarm']:g} %:")
+        total = f["fit_indices"] + f["calibration_indices"] + f["test_indices"]
+        lines.append(f"fused on the test third ({f['test_indices']} of {total} indices; NP "
+                     f"fusion fitted on {f['fit_indices']}, its threshold on "
+                     f"{f['calibration_indices']}), detection % at false alarm <= "
+                     f"{100 * f['false_alarm']:g} %:")
         for s, t in f["test"].items():
             b = t["best_single"]
             lines.append(f"  {s:11s} NP fusion {100 * t['NPFusion']['attack_reject']:5.1f} "

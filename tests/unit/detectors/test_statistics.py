@@ -27,7 +27,8 @@ def _tag_rule(tv, det, cfg):
     verified = []
     for row, d in zip(tv, det):
         checked = [x for x in row if not math.isnan(x)]
-        verified.append(bool(d and checked and sum(checked) / len(checked) >= cfg.min_valid_fraction))
+        share = sum(checked) / len(checked) if checked else 0.0
+        verified.append(bool(d and checked and share >= cfg.min_valid_fraction))
     ok = all(v for v, d in zip(verified, det) if d)
     if cfg.undetected == "invalid" and not all(det):
         ok = False
@@ -37,7 +38,8 @@ def _tag_rule(tv, det, cfg):
 def test_tag_statistic_gives_the_rule():
     rng = np.random.default_rng(1)
     for _ in range(CASES):
-        cfg = TagDetectorConfig(min_valid_fraction=float(rng.choice([0.1, 0.3, 0.5, 2 / 3, 0.7, 1.0])),
+        frac = float(rng.choice([0.1, 0.3, 0.5, 2 / 3, 0.7, 1.0]))
+        cfg = TagDetectorConfig(min_valid_fraction=frac,
                                 undetected=str(rng.choice(["invalid", "ignore"])),
                                 min_verified_bs=int(rng.integers(0, 4)))
         nbs, nslots = int(rng.integers(1, 4)), int(rng.integers(1, 11))

@@ -46,12 +46,12 @@ def test_np_threshold_counts_the_scores_above():
     assert np_threshold(tied, 0.05) == 1.0      # 0.0 would leave 10 % above
 
 
-def test_split_keeps_blocks_together():
-    train = split_by_index(95, np.random.default_rng(1), 10)
-    blocks = train.reshape(-1)[: 90].reshape(9, 10)
-    assert np.all(blocks.all(axis=1) | (~blocks).all(axis=1))
-    assert train[90:].all() or (~train[90:]).all()
-    assert int(blocks.all(axis=1).sum() + train[90]) == 5     # round(0.5 x 10 blocks)
+def test_split_keeps_blocks_together_and_deals_them_evenly():
+    part = split_by_index(95, np.random.default_rng(1), 10)
+    blocks = [part[i:i + 10] for i in range(0, 95, 10)]      # the last block holds 5
+    assert all(len(set(b.tolist())) == 1 for b in blocks)
+    # 10 blocks dealt to 3 parts in turn: 4, 3, 3 blocks
+    assert sorted(np.bincount([b[0] for b in blocks], minlength=3).tolist()) == [3, 3, 4]
 
 
 def test_np_fusion_false_alarm_meets_the_target():
