@@ -220,13 +220,19 @@ def format_metrics(metrics: dict) -> str:
     for name, m in sc.items():
         if not m.get("num_points"):
             continue
-        rates = " ".join(f"{_cell(m['correct_decision_rate'][d]):>9s}" for d in DETECTORS)
+        uninf = m.get("uninformative_detectors") or ()
+        rates = " ".join(f"{'uninf.' if d in uninf else _cell(m['correct_decision_rate'][d]):>9s}"
+                         for d in DETECTORS)
         o = " ".join(_cell(m["outcomes"][k]) for k in OUTCOMES)
         e = m.get("outcomes_encrypted")
         oe = " ".join(_cell(e[k]) for k in OUTCOMES) if e else ""
         lines.append(f"{name:12s} {rates}  | {o}  | {oe}")
     lines.append("correct-decision rate, %: benign = fixes accepted, attack = attack-window points "
                  "rejected; outcomes, %: benign over all points, attack over the attack window")
+    if "roc" in metrics:
+        from .report.roc_report import format_detection
+
+        lines.append(format_detection(metrics["roc"]))
     return "\n".join(lines)
 
 

@@ -26,6 +26,7 @@ from veriloc_rt.detectors.outcomes import DETECTORS, OUTCOMES
 from veriloc_rt.studies.fbs_bias import biased_fix_outcomes
 
 from .test_cli import ROOT, cli
+from .test_detection_roc import check_statistics_and_roc
 
 #: FBS target error: the multilateration of exact spoofed RSTDs lands within the receiver's
 #: noise-limited accuracy of the target (benign p95 ~1.5 m on UMa path loss); 5 m is 3x that
@@ -76,6 +77,7 @@ def check_run(res, out) -> None:
             off = cfg.threats.fbs.target_offset_m
             assert np.median(np.abs(err - off)) < FBS_TOL_M
         assert (out / f"{scenario}_timeseries.png").stat().st_size > 0
+    check_statistics_and_roc(out, cfg)
 
 
 def test_uma_four_scenarios_and_resume(tmp_path):

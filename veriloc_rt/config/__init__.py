@@ -21,8 +21,8 @@ from ..errors import InputError, bad_value
 from ..inputs import MAX_JSON_BYTES, check_path, parse_json, read_text
 from .attacks import FBS_MODES, FBSConfig, JammingConfig, MeaconingConfig, ThreatsConfig
 from .channel import ChannelConfig, ReceiverConfig
-from .detectors import (ABSAConfig, DetectorsConfig, HandshakeConfig, TagDetectorConfig,
-                        TrackingConfig)
+from .detectors import (ABSAConfig, DetectorsConfig, FusionConfig, HandshakeConfig,
+                        TagDetectorConfig, TrackingConfig)
 from .fields import check_value, from_dict, json_schema, param, section, to_dict
 from .nr import NRConfig
 from .propagation import (POLARIZATIONS, ArrayConfig, MaterialsConfig, PolarizationConfig,

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 from ..errors import bad_value
 from .fields import param, section
 
-__all__ = ["ABSAConfig", "HandshakeConfig", "TagDetectorConfig", "TrackingConfig"]
+__all__ = ["ABSAConfig", "FusionConfig", "HandshakeConfig", "TagDetectorConfig",
+           "TrackingConfig"]
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,22 @@ class TrackingConfig:
         self.validate("")  # from_dict names the section
 
 @dataclass(frozen=True)
+class FusionConfig:
+    """Fused decisions over the five detectors (report.fusion): k-of-n voting and a
+    Neyman-Pearson likelihood-ratio test on their statistics."""
+
+    k: int = param(3, "k-of-n voting: a point is rejected when at least k of the 5 detectors "
+                   "reject it (3: majority)", lo=1, hi=5)
+    false_alarm: float = param(0.05, "Neyman-Pearson fusion: the benign false-alarm rate its "
+                               "threshold is set for (on held-out benign points)", lo=0.0,
+                               lo_open=True, hi=0.5)
+    split_block: int = param(10, "the Neyman-Pearson fusion splits the trajectory into blocks "
+                             "of this many consecutive points, dealt in a random order (from the "
+                             "seed) to three parts: fit, threshold, evaluation", lo=1,
+                             hi=100_000)
+
+
+@dataclass(frozen=True)
 class DetectorsConfig:
     """The five per-point detectors (paper Sec. "Proposed Detection and Resilience Techniques")."""
 
@@ -85,6 +102,11 @@ class DetectorsConfig:
     absa: ABSAConfig = section(ABSAConfig, "angular-based source authentication")
     handshake: HandshakeConfig = section(HandshakeConfig, "DL-UL handshake")
     tracking: TrackingConfig = section(TrackingConfig, "Kalman position tracking")
+    fusion: FusionConfig = section(FusionConfig, "k-of-n and Neyman-Pearson fused decisions")
+    min_benign_accept: float = param(0.5, "a detector that accepts a smaller share of the benign "
+                                     "run's fixes at its threshold is reported as "
+                                     "'uninformative', not as detecting the attacks", lo=0.0,
+                                     hi=1.0)
 
     def validate(self, path: str = "detectors") -> None:
         if self.hmac.scheme != "hmac":

@@ -9,7 +9,7 @@ from ..config.detectors import ABSAConfig
 from .absa import ABSADetector, ABSAVerdict, angle_difference, geometric_azimuth, wrap_angle
 from ..config.detectors import HandshakeConfig
 from .handshake import HandshakeDetector, HandshakeVerdict
-from .point import PointDetectors, point_verdicts
+from .point import PointDetectors, point_statistics, point_verdicts
 from .tags import TagDetector, TagVerdict
 from ..config.detectors import TagDetectorConfig
 from .tracking import KalmanTracker, TrackVerdict, cv_transition, dwna_process_noise, nis_gate
@@ -17,5 +17,6 @@ from ..config.detectors import TrackingConfig
 
 __all__ = ["ABSAConfig", "ABSADetector", "ABSAVerdict", "angle_difference", "geometric_azimuth",
            "wrap_angle", "HandshakeConfig", "HandshakeDetector", "HandshakeVerdict", "TagDetector",
-           "TagDetectorConfig", "TagVerdict", "PointDetectors", "point_verdicts", "KalmanTracker", "TrackingConfig", "TrackVerdict",
+           "TagDetectorConfig", "TagVerdict", "PointDetectors", "point_statistics",
+           "point_verdicts", "KalmanTracker", "TrackingConfig", "TrackVerdict",
            "cv_transition", "dwna_process_noise", "nis_gate"]

@@ -22,6 +22,13 @@ Missing data:
 * a BS with no reference (no last validated position and no scene azimuth) is not checked.
 * a point where no BS could be checked gets ``unchecked_verdict`` (default invalid, fail-safe).
 
+Statistic (:attr:`ABSAVerdict.stat`, the ``absa_stat`` CSV column, deg): the largest
+``|wrap(theta_est_i - theta_ref_i)|`` over the checked BSs, rounded to :data:`STAT_DECIMALS`
+decimals of a degree (far below any AoA accuracy; the rounding absorbs the wrap's roundoff at an
+exact threshold difference), so that the point is valid iff ``stat <= threshold_deg`` exactly.
+A point that ``missing_estimate="invalid"`` or ``unchecked_verdict=False`` rejects whatever the
+threshold gets ``inf``; one that ``unchecked_verdict=True`` accepts gets 0 (no deviation seen).
+
 The ULA's mirror ambiguity (az and 2 alpha - az give the same spatial frequency) must be resolved
 before this stage (:func:`veriloc_rt.phy.receiver.aoa.resolve_ambiguity` against the same reference).
 """
@@ -35,8 +42,9 @@ import numpy as np
 
 from ..config.detectors import ABSAConfig
 
-#: the threshold is inclusive; wrapping an exact threshold difference can cost a few ulp
-_ROUNDOFF_RAD = 1e-12
+#: decimals of a degree the statistic keeps: wrapping an exact threshold difference can cost a
+#: few ulp, which rounding to 1e-9 deg removes (an AoA is never that accurate)
+STAT_DECIMALS = 9
 
 __all__ = ["ABSAConfig", "ABSADetector", "ABSAVerdict", "wrap_angle", "angle_difference",
            "geometric_azimuth"]
@@ -68,12 +76,15 @@ def geometric_azimuth(bs_pos, ue_pos):
 @dataclass(frozen=True, eq=False)
 class ABSAVerdict:
     """valid : bool; error : [num_bs] float64, rad, |AoA - reference| (NaN unchecked);
-    reference : [num_bs] float64, rad (NaN: none); passed : [num_bs] bool."""
+    reference : [num_bs] float64, rad (NaN: none); passed : [num_bs] bool;
+    stat : float, deg, the largest checked deviation (valid iff ``stat <= threshold_deg``;
+    module docstring)."""
 
     valid: bool
     error: np.ndarray
     reference: np.ndarray
     passed: np.ndarray
+    stat: float = float("nan")
 
 
 class ABSADetector:
@@ -85,6 +96,11 @@ class ABSADetector:
     def __init__(self, config: ABSAConfig | None = None):
         self.config = config if config is not None else ABSAConfig()
         self.threshold = math.radians(self.config.threshold_deg)
+
+    @staticmethod
+    def deviation_deg(error) -> np.ndarray:
+        """[...] float64, deg: ``error`` (rad) in degrees, rounded to :data:`STAT_DECIMALS`."""
+        return np.round(np.degrees(np.asarray(error, dtype=np.float64)), STAT_DECIMALS)
 
     def reference_azimuth(self, bs_pos, reference_position=None, reference_azimuth=None) -> np.ndarray:
         """ref : [num_bs] float64, rad, the reference per BS (NaN where there is none)."""
@@ -127,11 +143,13 @@ class ABSADetector:
         checked = has_est & has_ref
         err = np.full(est.size, np.nan)
         err[checked] = angle_difference(est[checked], ref[checked])
-        passed = checked & (np.nan_to_num(err, nan=np.inf) <= self.threshold + _ROUNDOFF_RAD)
-        if not np.any(checked):
-            ok = self.config.unchecked_verdict
-        else:
-            ok = bool(np.all(passed[checked]))
+        dev = self.deviation_deg(err)
+        th = self.config.threshold_deg
+        passed = checked & (np.nan_to_num(dev, nan=np.inf) <= th)
         if self.config.missing_estimate == "invalid" and not np.all(has_est):
-            ok = False
-        return ABSAVerdict(bool(ok), err, ref, passed)
+            stat = math.inf
+        elif not np.any(checked):
+            stat = 0.0 if self.config.unchecked_verdict else math.inf
+        else:
+            stat = float(dev[checked].max())
+        return ABSAVerdict(stat <= th, err, ref, passed, stat)

@@ -13,6 +13,11 @@ Failures are explicit:
 
 The distance is horizontal (x, y) by default, since both fixes assume the known UE height;
 ``horizontal=False`` uses the full 3-D distance when both fixes have 3 coordinates.
+
+Statistic (:attr:`HandshakeVerdict.stat`, the ``handshake_stat`` CSV column, m): the distance,
+``inf`` when a missing fix makes the point invalid whatever the threshold, 0 when
+``ul_failure="valid"`` trusts a DL fix without UL fix; the point is valid iff
+``stat <= threshold_m`` exactly.
 """
 
 from __future__ import annotations
@@ -28,11 +33,13 @@ __all__ = ["HandshakeConfig", "HandshakeDetector", "HandshakeVerdict"]
 
 @dataclass(frozen=True)
 class HandshakeVerdict:
-    """valid : bool; distance_m : float, m (NaN when a fix is missing); reason : str."""
+    """valid : bool; distance_m : float, m (NaN when a fix is missing); reason : str;
+    stat : float, m (valid iff ``stat <= threshold_m``; module docstring)."""
 
     valid: bool
     distance_m: float
     reason: str = ""
+    stat: float = float("nan")
 
 
 def _fix(p, name: str) -> np.ndarray | None:
@@ -61,12 +68,14 @@ class HandshakeDetector:
         """
         dl, ul = _fix(dl_position, "dl_position"), _fix(ul_position, "ul_position")
         if dl is None:
-            return HandshakeVerdict(False, float("nan"), "no DL fix")
+            return HandshakeVerdict(False, float("nan"), "no DL fix", float("inf"))
         if ul is None:
-            return HandshakeVerdict(self.config.ul_failure == "valid", float("nan"), "no UL fix")
+            stat = 0.0 if self.config.ul_failure == "valid" else float("inf")
+            return HandshakeVerdict(stat <= self.config.threshold_m, float("nan"), "no UL fix",
+                                    stat)
         if not self.config.horizontal and dl.size != ul.size:
             raise ValueError("Arguments `dl_position` and `ul_position` need the same number of "
                              f"coordinates for a 3-D comparison, not {dl.size} and {ul.size}")
         n = 2 if self.config.horizontal else dl.size
         dist = float(np.linalg.norm(dl[:n] - ul[:n]))
-        return HandshakeVerdict(dist <= self.config.threshold_m, dist)
+        return HandshakeVerdict(dist <= self.config.threshold_m, dist, "", dist)

@@ -7,7 +7,7 @@ trajectory point of one scenario as the run writes it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,6 +26,8 @@ class PointRow:
     time_s : float, s; verdicts : {detector: bool} (True valid); attack : bool
     true_xy, est_xy : [2] float64, m (est NaN without a fix); error_m : float (NaN without a fix)
     outcome : str; the ``*_enc`` fields: the same for encrypted PRS (None when not evaluated)
+    stats : {detector: float}, each detector's decision statistic
+    (:mod:`veriloc_rt.detectors.statistics`; empty when not recorded)
     """
 
     index: int
@@ -39,6 +41,7 @@ class PointRow:
     est_xy_enc: np.ndarray | None = None
     error_m_enc: float | None = None
     outcome_enc: str | None = None
+    stats: dict = field(default_factory=dict)
 
 
 def outcome_of(fix_ok: bool, error_m: float, threshold_m: float) -> str:

@@ -22,7 +22,7 @@ from .absa import ABSADetector
 from .handshake import HandshakeDetector
 from .tags import TagDetector
 
-__all__ = ["PointDetectors", "point_verdicts"]
+__all__ = ["PointDetectors", "point_statistics", "point_verdicts"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,15 +50,29 @@ def point_verdicts(detectors: PointDetectors, result: ChainResult, bs_pos: np.nd
         the module docstring)
     :param ds: the chain result whose tags DigSig checks (None: no DigSig verdict)
     """
-    v = {"HMAC": detectors.hmac(result.tags_valid, result.detected).valid}
+    return {d: v for d, (v, _) in
+            point_statistics(detectors, result, bs_pos, reference_position, ds).items()}
+
+
+def point_statistics(detectors: PointDetectors, result: ChainResult, bs_pos: np.ndarray,
+                     reference_position: np.ndarray | None,
+                     ds: ChainResult | None = None) -> dict:
+    """``{detector: (valid, stat)}``: :func:`point_verdicts` with each detector's statistic
+    (the verdicts' ``stat``: tag fraction, ABSA deviation in deg, DL-UL distance in m), same
+    arguments and order."""
+    h = detectors.hmac(result.tags_valid, result.detected)
+    v = {"HMAC": (h.valid, h.stat)}
     if ds is not None:
-        v["DigSig"] = detectors.digsig(ds.tags_valid, ds.detected).valid
+        d = detectors.digsig(ds.tags_valid, ds.detected)
+        v["DigSig"] = (d.valid, d.stat)
     ref_az = detectors.absa.reference_azimuth(bs_pos, reference_position)
     # no AoA: NaN; no reference: unresolvable, and ABSA does not check that BS anyway
     az = np.array([float(a.resolve(r)[0]) if (a is not None and np.isfinite(r)) else np.nan
                    for a, r in zip(result.aoa, ref_az)])
-    v["ABSA"] = detectors.absa(az, bs_pos, reference_position=reference_position).valid
+    a = detectors.absa(az, bs_pos, reference_position=reference_position)
+    v["ABSA"] = (a.valid, a.stat)
     ul = result.uplink.position if result.uplink is not None else None
-    v["Handshake"] = detectors.handshake(result.position.position if result.position.ok else None,
-                                         ul.position if (ul is not None and ul.ok) else None).valid
+    hs = detectors.handshake(result.position.position if result.position.ok else None,
+                             ul.position if (ul is not None and ul.ok) else None)
+    v["Handshake"] = (hs.valid, hs.stat)
     return v

@@ -20,6 +20,21 @@ Rule, per point:
 
 * the point is **valid** iff every detected serving BS is verified, the undetected rule allows it,
   and at least ``min_verified_bs`` BSs are verified.
+
+Statistic (:attr:`TagVerdict.stat`, the ``hmac_stat`` / ``digsig_stat`` CSV columns): the
+verified-slot fraction of the weakest BS that counts, so that the point is valid iff
+``stat >= min_valid_fraction`` (exactly: the rule above and this comparison are one code path):
+
+* the minimum over the detected serving BSs of their fraction of checked slots whose tag
+  verified (a detected BS with no checked slot: 0);
+* 0 when an undetected BS makes the point invalid (``undetected="invalid"``) or fewer than
+  ``min_verified_bs`` BSs are detected (no fraction > 0 can make the point valid);
+* 1 when no BS is detected and none is needed (``undetected="ignore"``, ``min_verified_bs=0``).
+
+``min_valid_fraction`` lies in (0, 1], so 0 always rejects and 1 always accepts. The comparison
+is exact, with no tolerance: IEEE division is correctly rounded, so a fraction k/n and a decimal
+threshold are both the nearest doubles to their values and rounding keeps their order (5/10 and
+0.5 are the same double).
 """
 
 from __future__ import annotations
@@ -35,11 +50,14 @@ __all__ = ["TagDetectorConfig", "TagDetector", "TagVerdict"]
 
 @dataclass(frozen=True, eq=False)
 class TagVerdict:
-    """valid : bool; verified : [num_bs] bool, per-BS verdict; detected : [num_bs] bool."""
+    """valid : bool; verified : [num_bs] bool, per-BS verdict; detected : [num_bs] bool;
+    stat : float, the weakest counted BS's verified-slot fraction in [0, 1] (valid iff
+    ``stat >= min_valid_fraction``; module docstring)."""
 
     valid: bool
     verified: np.ndarray
     detected: np.ndarray
+    stat: float = float("nan")
 
 
 class TagDetector:
@@ -73,10 +91,19 @@ class TagDetector:
         num_checked = checked.sum(axis=1)
         num_ok = np.where(checked, tvf, 0.0).sum(axis=1)
         frac = np.divide(num_ok, num_checked, out=np.zeros(num_bs), where=num_checked > 0)
-        # tolerance for fractions like 5/10 vs 0.5 computed in floating point
-        verified = det & (num_checked > 0) & (frac >= self.config.min_valid_fraction - 1e-12)
-        ok = bool(np.all(verified[det]))
-        if self.config.undetected == "invalid" and not np.all(det):
-            ok = False
-        ok = ok and int(verified.sum()) >= self.config.min_verified_bs
-        return TagVerdict(ok, verified, det)
+        th = self.config.min_valid_fraction
+        verified = det & (frac >= th)   # frac is 0 without a checked slot, and th > 0
+        stat = self.statistic(frac, det)
+        return TagVerdict(stat >= th, verified, det, stat)
+
+    def statistic(self, fraction: np.ndarray, detected: np.ndarray) -> float:
+        """The point statistic (module docstring).
+
+        :param fraction: [num_bs] float64, verified share of each BS's checked slots (0 if none)
+        :param detected: [num_bs] bool
+        """
+        if self.config.undetected == "invalid" and not np.all(detected):
+            return 0.0
+        if int(detected.sum()) < self.config.min_verified_bs:
+            return 0.0
+        return float(fraction[detected].min()) if np.any(detected) else 1.0

@@ -30,6 +30,20 @@ Decision rule per epoch (exactly what :meth:`KalmanTracker.__call__` does):
    in tracking mode. Otherwise the epoch is *invalid* and the filter keeps coasting. Measurements
    of the window other than the current one are never fused.
 
+Statistic (:attr:`TrackVerdict.stat`, the ``tracking_stat`` CSV column, dimensionless NIS) such
+that the epoch is valid iff ``stat <= gamma`` exactly:
+
+* tracking mode: the NIS (``inf`` without a measurement);
+* recovery mode: ``max(eps_k, eps_(M))``, the current NIS and the M-th smallest NIS of the
+  recovery window (``inf`` for a missing measurement or a window shorter than M): both are
+  <= gamma iff the current epoch passes and at least M of the window's epochs do, the M-of-N
+  rule above;
+* no track yet: 0 for the measurement that initialises the track, ``inf`` without one.
+
+The filter's path depends on the gate (what it fuses, when it coasts), so sweeping a threshold
+over this statistic gives the run's decisions at other thresholds *given* the configured gate's
+track, not what a run with another gate would decide.
+
 With the paper's two-epoch window (M = N = 2), recovery needs two consecutive gate passes, so
 one false rejection costs at least two invalid epochs: if gate outcomes were independent with
 false-rejection probability ``p = 1 - gate_probability``, the invalid rate would be
@@ -124,6 +138,7 @@ class TrackVerdict:
     mode : str, mode *after* this epoch ('init', 'tracking', 'recovery')
     position : [2] float64, m, filtered (or coasted) position (NaN before initialisation)
     covariance : [4, 4] float64, state covariance after this epoch
+    stat : float, the decision statistic (valid iff ``stat <= gate``; module docstring)
     """
 
     valid: bool
@@ -132,6 +147,7 @@ class TrackVerdict:
     mode: str
     position: np.ndarray
     covariance: np.ndarray
+    stat: float = math.nan
 
 
 class KalmanTracker:
@@ -151,7 +167,8 @@ class KalmanTracker:
         self.x = np.full(4, np.nan)
         self.P = np.full((4, 4), np.nan)
         self.mode = MODE_INIT
-        self._window: list[bool] = []
+        #: NIS of the epochs spent in recovery mode (inf: no measurement), the last window_n
+        self._window: list[float] = []
 
     @property
     def position(self) -> np.ndarray:
@@ -190,41 +207,45 @@ class KalmanTracker:
 
         if self.mode == MODE_INIT:
             if meas is None:
-                return self._verdict(False, False, math.nan)
+                return self._verdict(False, math.nan, math.inf)
             v0 = self.config.init_velocity_std_mps ** 2
             self.x = np.array([meas[0], meas[1], 0.0, 0.0])
             self.P = np.diag([self._r[0, 0], self._r[1, 1], v0, v0])
             self.mode = MODE_TRACKING
-            return self._verdict(True, True, math.nan)
+            return self._verdict(True, math.nan, 0.0)
 
         self.predict(dt)
         nis = math.nan
-        passed = False
         if meas is not None:
             nu = meas - self.x[:2]
             s = self.P[:2, :2] + self._r
             nis = float(nu @ np.linalg.solve(s, nu))
-            passed = nis <= self.gate
+        eps = nis if meas is not None else math.inf
 
         if self.mode == MODE_TRACKING:
-            if passed:
+            if eps <= self.gate:
                 self._update(meas, nu, s)
-                return self._verdict(True, True, nis)
+                return self._verdict(True, nis, eps)
             self.mode = MODE_RECOVERY
             self._window = []
             log.debug("tracking: rejected (nis %.3g), coasting", nis)
-            return self._verdict(False, False, nis)
+            return self._verdict(False, nis, eps)
 
         # recovery mode: M-of-N over the epochs spent in recovery
-        self._window.append(passed)
+        self._window.append(eps)
         self._window = self._window[-self.config.window_n:]
-        if passed and sum(self._window) >= self.config.accept_m:
+        m = self.config.accept_m
+        mth = sorted(self._window)[m - 1] if len(self._window) >= m else math.inf
+        stat = max(eps, mth)
+        if stat <= self.gate:
             self._update(meas, nu, s)
             self.mode = MODE_TRACKING
             self._window = []
             log.debug("tracking: re-accepted (nis %.3g)", nis)
-            return self._verdict(True, True, nis)
-        return self._verdict(False, False, nis)
+            return self._verdict(True, nis, stat)
+        return self._verdict(False, nis, stat)
 
-    def _verdict(self, valid: bool, accepted: bool, nis: float) -> TrackVerdict:
-        return TrackVerdict(valid, accepted, nis, self.mode, self.x[:2].copy(), self.P.copy())
+    def _verdict(self, accepted: bool, nis: float, stat: float) -> TrackVerdict:
+        """An epoch's verdict: valid iff the measurement was fused (``stat <= gate`` then)."""
+        return TrackVerdict(accepted, accepted, nis, self.mode, self.x[:2].copy(), self.P.copy(),
+                            stat)

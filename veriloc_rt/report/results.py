@@ -3,7 +3,9 @@
 ``<scenario>_results.csv`` (DESIGN.md, "Files written by run"): the first columns are exactly
 ``Time,HMAC,DigSig,ABSA,Handshake,Tracking`` (1 valid, 0 invalid), as the paper's figures read
 them, then ``x_true,y_true,x_est,y_est,error_m,outcome``, then ``index,attack`` and the
-encrypted-PRS fix ``x_est_enc,y_est_enc,error_m_enc,outcome_enc``. Floats are written with
+encrypted-PRS fix ``x_est_enc,y_est_enc,error_m_enc,outcome_enc``, then each detector's
+decision statistic (:data:`~veriloc_rt.detectors.statistics.STAT_COLUMNS`: ``hmac_stat`` ..
+``tracking_stat``; ``inf`` where a rule rejects whatever the threshold). Floats are written with
 ``repr`` (shortest exact round trip), so a resumed run replays the saved fixes bit for bit.
 A row is flushed as soon as it exists: an interrupted run keeps every finished point.
 
@@ -30,11 +32,13 @@ import numpy as np
 
 from ..fileio import atomic_output
 from ..detectors.outcomes import DETECTORS, OUTCOMES, PointRow
+from ..detectors.statistics import STAT_COLUMNS
 
 __all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "scenario_metrics", "results_path"]
 
 CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
-               "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc")
+               "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc",
+               *STAT_COLUMNS)
 
 
 def results_path(out_dir: str | Path, scenario: str) -> Path:
@@ -58,7 +62,8 @@ def row_to_fields(r: PointRow) -> list[str]:
     return ([repr(float(r.time_s))] + [str(int(bool(r.verdicts[d]))) for d in DETECTORS]
             + [_f(r.true_xy[0]), _f(r.true_xy[1]), _f(r.est_xy[0]), _f(r.est_xy[1]),
                _f(r.error_m), r.outcome, str(r.index), str(int(r.attack)),
-               _f(enc[0]), _f(enc[1]), _f(r.error_m_enc), r.outcome_enc or ""])
+               _f(enc[0]), _f(enc[1]), _f(r.error_m_enc), r.outcome_enc or ""]
+            + [_f(r.stats.get(d)) for d in DETECTORS])
 
 
 def fields_to_row(f: dict) -> PointRow:
@@ -70,7 +75,8 @@ def fields_to_row(f: dict) -> PointRow:
         est_xy=np.array([_p(f["x_est"]), _p(f["y_est"])]), error_m=_p(f["error_m"]),
         outcome=f["outcome"],
         est_xy_enc=np.array([_p(f["x_est_enc"]), _p(f["y_est_enc"])]) if enc else None,
-        error_m_enc=_p(f["error_m_enc"]) if enc else None, outcome_enc=f["outcome_enc"] or None)
+        error_m_enc=_p(f["error_m_enc"]) if enc else None, outcome_enc=f["outcome_enc"] or None,
+        stats={d: _p(f[c]) for d, c in zip(DETECTORS, STAT_COLUMNS) if f[c] != ""})
 
 
 def read_rows(path: str | Path) -> list[PointRow]:

@@ -7,7 +7,8 @@ point with :class:`~veriloc_rt.sim.runner.ScenarioRunner`, writing each row to
 folder's chain store (:mod:`~veriloc_rt.sim.chain_store`). ``resume=True`` keeps the rows and
 chain results already on disk (the config must be the one that produced them) and continues
 after them; the result is the same as an uninterrupted run. At the end it writes
-``metrics.json``, ``run.json`` and the plots. The folder's lock, the checks before a run writes
+``metrics.json`` (with the detection analysis of :mod:`~veriloc_rt.report.detection`: ROC, AUC,
+fused decisions), ``roc.csv``, ``run.json`` and the plots. The folder's lock, the checks before a run writes
 into it and ``run.json``: :mod:`~veriloc_rt.sim.run_folder`.
 
 Executors: the detectors carry state from point to point and run here, in order; the chains of
@@ -35,6 +36,8 @@ from ..fileio import atomic_write_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import uma_propagation
 from ..report import plots
+from ..report.detection import analyse_detection
+from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
 from ..report.paper import PAPER_RATES
 from ..report.propagation_summary import summarize
 from ..report.results import ResultsWriter, read_rows, results_path, scenario_metrics
@@ -209,9 +212,19 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     timing.update(_peak_rss_mib())
     metrics["timing_s"] = timing
     metrics["propagation_model"] = cfg.propagation.model
+    analysis = analyse_detection(rows, cfg)
+    if analysis is not None:
+        metrics["roc"] = analysis.metrics
+        for s, m in metrics["scenarios"].items():
+            if s != "none":
+                m["uninformative_detectors"] = list(analysis.uninformative)
     if out:
         atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2))
         _write_plots(out, metrics)
+        if analysis is not None:
+            write_roc_csv(out / "roc.csv", analysis)
+            plot_roc(analysis, out / "roc.png",
+                     title=ROC_TITLE)
         write_run_json(out, cfg, "complete", timing, fields)
     return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
 

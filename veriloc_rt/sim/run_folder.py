@@ -43,7 +43,7 @@ CHAIN_FILE = "chains.bin"
 #: files a run writes into its folder besides ``scene/`` (a new run replaces them all)
 RUN_FILES = ("run.json", "metrics.json", "propagation_summary.json", CHAIN_FILE, "outcomes.png",
              "detection_rates.png", "scene_top_view.png", "montecarlo.csv",
-             "montecarlo_detection_rates.png",
+             "montecarlo_detection_rates.png", "roc.csv", "roc.png",
              *(f"{s}_{kind}" for s in SCENARIOS
                for kind in ("results.csv", "timeseries.png", "map.png")))
 

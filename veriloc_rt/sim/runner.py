@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import Config
-from ..detectors import KalmanTracker, PointDetectors, point_verdicts
+from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..rng import stream
@@ -152,12 +152,13 @@ class ScenarioRunner:
         self.tracker.reset()
         self._last_valid = None
 
-    def _track(self, est_xy: np.ndarray, dt: float | None) -> bool:
+    def _track(self, est_xy: np.ndarray, dt: float | None) -> tuple[bool, float]:
+        """(valid, stat) of the tracker on the DL fix ``est_xy``."""
         z = est_xy if np.all(np.isfinite(est_xy)) else None
         v = self.tracker(z, dt)
         if v.accepted:
             self._last_valid = v.position.copy()
-        return v.valid
+        return v.valid, v.stat
 
     def replay(self, rows: list[PointRow]) -> None:
         """Rebuild the detector state from saved rows (resume)."""
@@ -273,11 +274,12 @@ class ScenarioRunner:
         ds = self.chain_result("ds", scenario, i, res) if "ds" in self.roles else res
         t = time.perf_counter()
         ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
-        v = point_verdicts(self.detectors, res, self.prop.bs_ue.tx_pos[i], ref, ds)
+        v = point_statistics(self.detectors, res, self.prop.bs_ue.tx_pos[i], ref, ds)
         v["Tracking"] = self._track(est, self._dt(prev, i))
         self.timing["detectors"] += time.perf_counter() - t
         row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
-                       v, true_xy.copy(), est, err, out)
+                       {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
+                       stats={d: st for d, (_, st) in v.items()})
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)

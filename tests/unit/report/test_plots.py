@@ -133,9 +133,11 @@ def test_trajectory_map_rejects_bad_bs_shape(rows, tmp_path):
 
 
 CSV_TEXT = (",".join(COLUMNS) + "\n"
-            "0.0,1,1,1,1,1,10.5,-2.25,11.0,-2.0,0.559,success,0,0,10.75,-2.5,0.25,success\n"
-            "1.0,0,1,0,1,1,11.5,-2.25,,,,service_failure,1,1,nan,nan,nan,service_failure\n"
-            "2.0,0,0,1,1,0,12.5,-2.25,80.0,40.0,79.7,large_error,2,1,,,,\n")
+            "0.0,1,1,1,1,1,10.5,-2.25,11.0,-2.0,0.559,success,0,0,10.75,-2.5,0.25,success,"
+            "1.0,1.0,3.5,2.0,0.0\n"
+            "1.0,0,1,0,1,1,11.5,-2.25,,,,service_failure,1,1,nan,nan,nan,service_failure,"
+            "0.0,0.5,inf,12.0,1.2\n"
+            "2.0,0,0,1,1,0,12.5,-2.25,80.0,40.0,79.7,large_error,2,1,,,,,0.25,0.0,19.9,5.5,inf\n")
 
 
 def test_read_results_csv_round_trip(tmp_path):
@@ -154,6 +156,8 @@ def test_read_results_csv_round_trip(tmp_path):
     assert math.isnan(r["x_est"][1]) and math.isnan(r["error_m"][1])  # empty cells
     assert np.isnan(r["x_est_enc"][1:]).all()  # 'nan' and empty cells
     assert r["error_m_enc"][0] == 0.25
+    assert r["absa_stat"].tolist() == [3.5, math.inf, 19.9]   # 'inf': rejected by a rule
+    assert r["tracking_stat"].tolist() == [0.0, 1.2, math.inf]
 
 
 def test_read_results_csv_header_only_and_empty_file(tmp_path):

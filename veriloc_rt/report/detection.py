@@ -1,0 +1,192 @@
+"""A run's detection analysis: each detector's ROC and AUC per attack, the uninformative flag,
+and the fused decisions (k-of-n vote, Neyman-Pearson fusion), from the rows the run wrote.
+
+Points (the same as ``correct_decision_rate``, so the configured threshold's operating point
+reproduces it exactly): *benign* = the ``none`` scenario's points with a fix (a DoS point is no
+false alarm, as in the paper); *attack* = an attack scenario's attack-window points. The ROC math
+is :mod:`.roc`, the fusion's :mod:`.fusion`.
+
+* single detectors: the ROC of their statistic (:mod:`veriloc_rt.detectors.statistics`) over
+  every benign and attack point, with the configured threshold's operating point;
+* ``uninformative``: a detector whose benign acceptance at its threshold is below
+  ``detectors.min_benign_accept``; its attack rejections are not detections (it rejects
+  everything);
+* ``KofN``: the number of rejecting detectors, valid iff ``<= k - 1`` (``detectors.fusion.k``),
+  over every point (nothing is fitted);
+* ``NPFusion``: the trajectory's blocks split in three (:func:`.fusion.split_by_index` with the
+  named stream ``"fusion-split"``); the naive-Bayes likelihood-ratio score fitted on the first
+  third (the three attacks pooled as the alternative: the defender does not know which attack
+  comes), its threshold at ``detectors.fusion.false_alarm`` on the second third's benign
+  scores, its ROC and operating point on the last third (the *test* points) only. ``fusion.test`` compares it, on those same test
+  points, with every single detector and the vote at their best threshold for that false-alarm
+  rate (chosen on the test points: an oracle in the single detectors' favour).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..config import Config
+from ..detectors.outcomes import DETECTORS
+from ..detectors.statistics import STATISTICS, accepts, configured_thresholds
+from ..rng import stream
+from .fusion import CALIBRATE, FIT, TEST, NaiveBayesLR, kofn_votes, np_threshold, split_by_index
+from .roc import RocCurve, auc, detection_at_false_alarm, operating_point, roc_curve
+
+log = logging.getLogger(__name__)
+
+__all__ = ["FUSED", "ROC_COLUMNS", "DetectionAnalysis", "analyse_detection"]
+
+#: the fused decisions' names, after :data:`DETECTORS` in every table
+FUSED = ("KofN", "NPFusion")
+#: roc.csv columns
+ROC_COLUMNS = ("detector", "attack", "threshold", "benign_accept", "attack_reject")
+
+
+@dataclass
+class _Points:
+    """One scenario's selected points: index [n] int64; stats [n, 5] float64; valid [n, 5]
+    bool (the verdicts, :data:`DETECTORS` order)."""
+
+    index: np.ndarray
+    stats: np.ndarray
+    valid: np.ndarray
+
+    @classmethod
+    def of(cls, rows: list, keep) -> "_Points":
+        sel = [r for r in rows if keep(r)]
+        return cls(np.array([r.index for r in sel], dtype=np.int64),
+                   np.array([[r.stats[d] for d in DETECTORS] for r in sel],
+                            dtype=np.float64).reshape(-1, len(DETECTORS)),
+                   np.array([[r.verdicts[d] for d in DETECTORS] for r in sel],
+                            dtype=bool).reshape(-1, len(DETECTORS)))
+
+    def take(self, mask: np.ndarray) -> "_Points":
+        return _Points(self.index[mask], self.stats[mask], self.valid[mask])
+
+
+@dataclass
+class DetectionAnalysis:
+    """metrics : the ``roc`` block of metrics.json; curves : {(name, attack): RocCurve};
+    operating : {(name, attack): (threshold, benign_accept, attack_reject)};
+    uninformative : the detectors flagged."""
+
+    metrics: dict
+    curves: dict = field(default_factory=dict)
+    operating: dict = field(default_factory=dict)
+    uninformative: list = field(default_factory=list)
+
+    def roc_rows(self) -> list[tuple]:
+        """roc.csv rows (:data:`ROC_COLUMNS`), every curve's vertices."""
+        out = []
+        for (name, attack), c in self.curves.items():
+            out += [(name, attack, float(t), float(b), float(a))
+                    for t, b, a in zip(c.threshold, c.benign_accept, c.attack_reject)]
+        return out
+
+
+def _entry(curve: RocCurve, threshold: float, benign, attack) -> dict:
+    ba, ar = operating_point(benign, attack, threshold, curve.accept)
+    return {"auc": auc(curve), "threshold": threshold, "benign_accept": ba,
+            "attack_reject": ar}
+
+
+def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
+    """The analysis of a run's rows ``{scenario: [PointRow]}``; None without a ``none``
+    scenario, without benign fixes or attack points, or without statistics in the rows."""
+    attacks = [s for s in rows if s != "none" and rows[s]]
+    every = [r for s in rows for r in rows[s]]
+    if "none" not in rows or not attacks or any(set(r.stats) != set(DETECTORS) for r in every):
+        return None
+    benign = _Points.of(rows["none"], lambda r: r.outcome != "service_failure")
+    attack = {s: _Points.of(rows[s], lambda r: r.attack) for s in attacks}
+    attacks = [s for s in attacks if attack[s].index.size]
+    if not benign.index.size or not attacks:
+        return None
+    det = cfg.detectors
+    thr = configured_thresholds(det)
+    k = det.fusion.k
+    res = DetectionAnalysis({})
+    # -- single detectors and the vote, over every point ----------------------------------
+    names = {d: (benign.stats[:, j], {s: attack[s].stats[:, j] for s in attacks},
+                 STATISTICS[d].accept, thr[d]) for j, d in enumerate(DETECTORS)}
+    names["KofN"] = (kofn_votes(benign.valid), {s: kofn_votes(attack[s].valid) for s in attacks},
+                     "<=", float(k - 1))
+    summary: dict = {}
+    for name, (b, a_by, acc, t) in names.items():
+        ba = float(accepts(b, t, acc).mean())
+        summary[name] = {"statistic": STATISTICS[name].column if name in STATISTICS else "votes",
+                         "accept": acc, "threshold": t, "benign_accept": ba,
+                         "uninformative": ba < det.min_benign_accept}
+        if ba < det.min_benign_accept:
+            res.uninformative.append(name)
+        for s in attacks:
+            c = roc_curve(b, a_by[s], acc)
+            res.curves[(name, s)] = c
+            e = _entry(c, t, b, a_by[s])
+            res.operating[(name, s)] = (t, e["benign_accept"], e["attack_reject"])
+            res.metrics.setdefault("attacks", {}).setdefault(s, {})[name] = e
+    # -- Neyman-Pearson fusion: fit, calibrate and evaluate on three parts of the blocks -------
+    n = max(r.index for r in every) + 1
+    part = split_by_index(n, stream(cfg.seed, "fusion-split"), det.fusion.split_block)
+    fusion: dict = {"k": k, "false_alarm": det.fusion.false_alarm,
+                    "split_block": det.fusion.split_block,
+                    "fit_indices": int((part == FIT).sum()),
+                    "calibration_indices": int((part == CALIBRATE).sum()),
+                    "test_indices": int((part == TEST).sum())}
+    b_fit, b_cal, b_te = (benign.take(part[benign.index] == p) for p in (FIT, CALIBRATE, TEST))
+    a_fit = np.concatenate([attack[s].stats[part[attack[s].index] == FIT] for s in attacks])
+    a_te = {s: attack[s].take(part[attack[s].index] == TEST) for s in attacks}
+    sizes = [b_fit.index.size, a_fit.size, b_cal.index.size, b_te.index.size,
+             *(p.index.size for p in a_te.values())]
+    if all(sizes):
+        model = NaiveBayesLR(b_fit.stats, a_fit)
+        s_cal = model.score(b_cal.stats)
+        tau = np_threshold(s_cal, det.fusion.false_alarm)
+        fusion["np_threshold"] = tau
+        fusion["np_calibration_false_alarm"] = float((s_cal > tau).mean())
+        fusion["np_fit_false_alarm"] = float((model.score(b_fit.stats) > tau).mean())
+        sb = model.score(b_te.stats)
+        summary["NPFusion"] = {"statistic": "naive-Bayes log-likelihood ratio", "accept": "<=",
+                               "threshold": tau, "benign_accept": float((sb <= tau).mean()),
+                               "uninformative": False, "evaluated_on": "test indices"}
+        test: dict = {}
+        for s in attacks:
+            sa = model.score(a_te[s].stats)
+            c = roc_curve(sb, sa, "<=")
+            res.curves[("NPFusion", s)] = c
+            e = _entry(c, tau, sb, sa)
+            res.operating[("NPFusion", s)] = (tau, e["benign_accept"], e["attack_reject"])
+            res.metrics["attacks"][s]["NPFusion"] = e
+            test[s] = _test_comparison(b_te, a_te[s], sb, sa, tau, det.fusion.false_alarm)
+        fusion["test"] = test
+    else:
+        log.warning("NP fusion skipped: a part of the split has no benign or no attack point")
+    res.metrics = {"benign_points": int(benign.index.size),
+                   "min_benign_accept": det.min_benign_accept, "detectors": summary,
+                   "uninformative": list(res.uninformative),
+                   "attacks": res.metrics.get("attacks", {}), "fusion": fusion}
+    return res
+
+
+def _test_comparison(b_te: _Points, a_te: _Points, sb, sa, tau: float, alpha: float) -> dict:
+    """On the test points of one attack: each decision's AUC and its detection rate at
+    false-alarm rate <= alpha (the NP fusion at its calibrated threshold ``tau``; the others at
+    their best vertex on these points, an oracle in their favour), and ``best_single``: the
+    single detector with the highest such detection rate (then the highest AUC)."""
+    out: dict = {}
+    for j, d in enumerate(DETECTORS):
+        c = roc_curve(b_te.stats[:, j], a_te.stats[:, j], STATISTICS[d].accept)
+        t, fa, pd = detection_at_false_alarm(c, alpha)
+        out[d] = {"auc": auc(c), "threshold": t, "false_alarm": fa, "attack_reject": pd}
+    c = roc_curve(kofn_votes(b_te.valid), kofn_votes(a_te.valid), "<=")
+    t, fa, pd = detection_at_false_alarm(c, alpha)
+    out["KofN"] = {"auc": auc(c), "threshold": t, "false_alarm": fa, "attack_reject": pd}
+    out["NPFusion"] = {"auc": auc(roc_curve(sb, sa, "<=")), "threshold": tau,
+                       "false_alarm": float((sb > tau).mean()),
+                       "attack_reject": float((sa > tau).mean())}
+    out["best_single"] = max(DETECTORS, key=lambda d: (out[d]["attack_reject"], out[d]["auc"]))
+    return out

@@ -1,0 +1,124 @@
+"""The detection analysis on disk: ``roc.csv``, ``roc.png`` and the text summary of it.
+
+``roc.csv`` (:data:`~veriloc_rt.report.detection.ROC_COLUMNS`): one row per ROC vertex of each
+decision (the five detectors, ``KofN``, ``NPFusion``) and attack, in the order the curve runs
+from accept-all to reject-all. ``roc.png``: one panel per attack, false-alarm rate
+``1 - benign_accept`` against detection rate ``attack_reject`` (Fawcett 2006's axes), a curve
+per decision, the configured threshold's operating point marked; the x axis is linear up to
+1 % false alarms and logarithmic above, since the operating points crowd near 0.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from ..detectors.outcomes import DETECTORS
+from ..fileio import atomic_output
+from .detection import FUSED, ROC_COLUMNS, DetectionAnalysis
+from .plots import figure
+
+__all__ = ["LABELS", "ROC_TITLE", "format_detection", "plot_roc", "write_roc_csv"]
+
+#: roc.png's title
+ROC_TITLE = ("ROC per attack (o: configured threshold; AUC in the legend; x linear below 0.01, "
+             "log above)")
+
+#: display label and colour of each decision (the single detectors' as in the other plots)
+LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
+          "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
+          "Tracking": ("Tracking", (0.3, 0.3, 0.3)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
+          "NPFusion": ("NP fusion (test third)", (0.0, 0.55, 0.0))}
+
+
+#: false-alarm rate up to which roc.png's x axis is linear (logarithmic above)
+_LINEAR_FA = 0.01
+
+
+def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
+    """Write every curve's vertices (floats exact, ``inf`` for an unbounded threshold)."""
+    path = Path(path)
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(ROC_COLUMNS)
+        for name, attack, t, b, a in analysis.roc_rows():
+            w.writerow([name, attack, repr(t), repr(b), repr(a)])
+    return path
+
+
+def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = None) -> Path:
+    """One panel per attack: the ROC of each decision, its configured operating point as a
+    marker, the AUC in the legend; uninformative detectors dashed."""
+    m = analysis.metrics
+    attacks = list(m["attacks"])
+    k = m["fusion"]["k"]
+    path = Path(path)
+    with figure(path, title, ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
+                squeeze=False) as (_, axes):
+        for ax, s in zip(axes[0], attacks):
+            for name in (*DETECTORS, *FUSED):
+                c = analysis.curves.get((name, s))
+                if c is None:
+                    continue
+                label, colour = LABELS[name]
+                label = label.replace("k-of-5", f"{k}-of-5")
+                ls = "--" if name in analysis.uninformative else "-"
+                ax.plot(c.false_alarm, c.attack_reject, ls, color=colour, lw=1.4,
+                        drawstyle="default",
+                        label=f"{label} {m['attacks'][s][name]['auc']:.3f}"
+                        + (" (uninf.)" if name in analysis.uninformative else ""))
+                _, ba, ar = analysis.operating[(name, s)]
+                ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
+            chance = np.linspace(0.0, 1.0, 201)
+            ax.plot(chance, chance, ":", color="0.6", lw=0.8)
+            # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
+            ax.set_xscale("symlog", linthresh=_LINEAR_FA, linscale=0.5)
+            ax.set_xticks([0.0, 0.01, 0.1, 1.0], ["0", "0.01", "0.1", "1"])
+            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02), title=s,
+                   xlabel="false alarm = 1 - benign acceptance",
+                   ylabel="detection (attack rejected)")
+            ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
+                      loc="lower right")
+    return path
+
+
+def format_detection(roc: dict) -> str:
+    """The ``roc`` block of metrics.json as text: AUC and operating point per decision and
+    attack, the uninformative detectors, and the fused decisions against the best single one."""
+    names = [n for n in (*DETECTORS, *FUSED) if n in roc["detectors"]]
+    short = {**{d: LABELS[d][0] for d in DETECTORS}, "KofN": f"{roc['fusion']['k']}-of-5",
+             "NPFusion": "NP fusion"}
+    head = "ROC          " + " ".join(f"{short[n]:>15s}" for n in names)
+    lines = [head + "   (AUC  benign-accept/attack-reject % at the configured threshold)"]
+    for s, per in roc["attacks"].items():
+        cells = []
+        for n in names:
+            e = per.get(n)
+            cells.append(f"{'n/a':>15s}" if e is None else
+                         f"{e['auc']:5.3f} {100 * e['benign_accept']:4.0f}/"
+                         f"{100 * e['attack_reject']:<4.0f}")
+        lines.append(f"{s:12s} " + " ".join(f"{c:>15s}" for c in cells))
+    if roc["uninformative"]:
+        lines.append(f"uninformative (accept < {100 * roc['min_benign_accept']:.0f} % of benign "
+                     "fixes at their threshold; their attack rejections are no detections): "
+                     + ", ".join(f"{d} ({100 * roc['detectors'][d]['benign_accept']:.1f} %)"
+                                 for d in roc["uninformative"]))
+    f = roc["fusion"]
+    if "test" in f:
+        total = f["fit_indices"] + f["calibration_indices"] + f["test_indices"]
+        lines.append(f"fused on the test third ({f['test_indices']} of {total} indices; NP "
+                     f"fusion fitted on {f['fit_indices']}, its threshold on "
+                     f"{f['calibration_indices']}), detection % at false alarm <= "
+                     f"{100 * f['false_alarm']:g} %:")
+        for s, t in f["test"].items():
+            b = t["best_single"]
+            lines.append(f"  {s:11s} NP fusion {100 * t['NPFusion']['attack_reject']:5.1f} "
+                         f"(false alarm {100 * t['NPFusion']['false_alarm']:4.1f}, AUC "
+                         f"{t['NPFusion']['auc']:.3f})  vote at its best k "
+                         f"{100 * t['KofN']['attack_reject']:5.1f}  best single {b} "
+                         f"{100 * t[b]['attack_reject']:5.1f} (AUC {t[b]['auc']:.3f}, oracle "
+                         "threshold)")
+    return "\n".join(lines)
+
