@@ -101,7 +101,7 @@ def check_materials(cfg: Config) -> None:
             if problem:
                 raise InputError(f"scene.{name}", f"{problem} (propagation.carrier_frequency_hz)")
         return
-    for name in scene_itu_materials(cfg.scene.source):
+    for name in scene_itu_materials(cfg.scene.xml_path):
         problem = itu_material_problem(name, f)
         if problem:
             raise InputError("scene.source", f"{cfg.scene.source}: {problem}")
