@@ -128,7 +128,7 @@ def test_short_traced_run_on_a_cropped_bundled_scene(tmp_path):
     cfg = {"seed": 2, "scene": {"source": "sionna:etoile", "margin_m": 40.0},
            "topology": {"isd_m": 120.0},
            "trajectory": {"num_points": 4, "region_m": 60.0, "adversary_lag_points": 1},
-           "propagation": {"raytrace": {"rays_per_source": 2000}}}
+           "propagation": {"raytrace": {"rays_per_source": 2000, "edge_candidates": "sampled"}}}
     f = tmp_path / "c.json"
     f.write_text(json.dumps(cfg))
     code, out, err = run_cli("run", f, "--out", tmp_path / "r")
@@ -141,3 +141,21 @@ def test_short_traced_run_on_a_cropped_bundled_scene(tmp_path):
     assert s["bs_to_ue"]["links_with_path_pct"] > 0
     assert (r / "scene" / "scene.xml").is_file()
     assert (r / "scene_top_view.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_bs_reaching_no_point_warns(caplog):
+    import logging
+
+    from veriloc_rt.sim.checks import warn_silent_bs
+
+    serving = np.array([[0, 1, 2], [0, 1, 3], [0, 4, 3]])
+    has_path = np.array([[True, False, False], [True, False, True], [True, True, False]])
+    # BS 1 serves points 0 and 1, no path at either; BS 2 serves point 0 only, no path;
+    # BS 3 has a path at point 1, BS 4 at point 2
+    with caplog.at_level(logging.WARNING):
+        assert warn_silent_bs(has_path, serving) == [1, 2]
+    assert caplog.records[0].getMessage().startswith("BS 1, 2 reach the UE at none of the points")
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        assert warn_silent_bs(np.ones((3, 3), bool), serving) == []
+    assert not caplog.records

@@ -185,7 +185,10 @@ class TopologyConfig:
 class TrajectoryConfig:
     """UE path (street-following generator or CSV) and the adversary that follows it."""
 
-    source: str = param("generator", "'generator' or a CSV path with columns t,x,y[,z]")
+    source: str = param("generator", "'generator' (on the canyon's street grid, or on a mesh "
+                        "scene's street graph: streets.json beside its XML, else derived from "
+                        "the free space at ue_height_m, 1 m from every wall) or a CSV path with "
+                        "columns t,x,y[,z]")
     num_points: int = param(120, "number of trajectory points (the built-in default is small "
                             "enough for a few minutes; configs/paper-*.json use the paper's "
                             "1200). The maximum bounds a run's memory and time: it holds every "

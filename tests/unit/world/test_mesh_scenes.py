@@ -61,19 +61,22 @@ def ray_hits_z(tris: np.ndarray, origins: np.ndarray, direction: np.ndarray) -> 
     return out
 
 
-def _wall_distance_and_inside(scene: MeshScene, xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Independent check: horizontal distance to the buildings' cut at each point's height
-    (trimesh.intersections.mesh_plane + shapely), and inside-ness by the parity of the
-    building faces a vertical ray up crosses (:func:`ray_hits_z`)."""
+def wall_distance(scene: MeshScene, xyz: np.ndarray) -> np.ndarray:
+    """Independent check: horizontal distance, m, from each point to the buildings' cut at its
+    height (trimesh.intersections.mesh_plane, shapely)."""
     import shapely
     import trimesh
 
-    mesh = _trimesh(scene)
     z = float(xyz[0, 2])
     assert np.all(xyz[:, 2] == z)
-    seg = trimesh.intersections.mesh_plane(mesh, [0, 0, 1], [0, 0, z])
+    seg = trimesh.intersections.mesh_plane(_trimesh(scene), [0, 0, 1], [0, 0, z])
     walls = shapely.multilinestrings([shapely.linestrings(s[:, :2]) for s in seg])
-    dist = shapely.distance(shapely.points(xyz[:, :2]), walls)
+    return shapely.distance(shapely.points(xyz[:, :2]), walls)
+
+
+def inside_buildings(scene: MeshScene, xyz: np.ndarray) -> np.ndarray:
+    """Independent check: an odd number of building faces a vertical ray up crosses
+    (:func:`ray_hits_z`)."""
     # a ray up only meets faces whose footprint holds the point: test near ones only
     tris = scene.building_triangles
     inside = np.zeros(len(xyz), dtype=bool)
@@ -81,7 +84,7 @@ def _wall_distance_and_inside(scene: MeshScene, xyz: np.ndarray) -> tuple[np.nda
     for k, o in enumerate(xyz):
         near = np.all((lo <= o[:2] + 1e-9) & (hi >= o[:2] - 1e-9), axis=1)
         inside[k] = len(ray_hits_z(tris[near], o[None], np.array([0.0, 0.0, 1.0]))[0]) % 2 == 1
-    return dist, inside
+    return inside
 
 
 def test_bundled_city_scenes_split_into_ground_and_buildings(etoile, street_canyon):
@@ -103,11 +106,16 @@ def test_derived_drive_keeps_out_of_buildings_and_1m_from_walls(name, etoile, st
     adv = follower(ue, cfg.adversary_lag_points, cfg.adversary_min_separation_m)
     # the whole covered path, not only the samples, and the adversary's points
     s = np.arange(min(adv.s.min(), ue.s.min()), ue.s.max(), SAMPLE_M)
-    pts = np.concatenate([ue.at_arclength(s), ue.pos, adv.pos])
+    samples = ue.at_arclength(s)
+    pts = np.concatenate([samples, ue.pos, adv.pos])
     pts[:, 2] = cfg.ue_height_m
-    dist, inside = _wall_distance_and_inside(scene, pts)
-    assert not inside.any()
+    dist = wall_distance(scene, pts)
     assert dist.min() >= CLEARANCE_M, dist.min()
+    # points >= 1 m from every wall are either all outside or deep inside a building: the
+    # parity test on every 4th sample (1 m apart) and every trajectory point settles which
+    few = np.concatenate([samples[::4], ue.pos, adv.pos])
+    few[:, 2] = cfg.ue_height_m
+    assert not inside_buildings(scene, few).any()
     assert ue.s[-1] - ue.s[0] > 100.0          # it drives somewhere (300 s)
 
 
@@ -166,6 +174,8 @@ def test_rooftop_bs_stands_mast_height_above_its_roof(etoile):
         roof = down[k].max()                  # the roof straight below
         assert bs[k, 2] - roof == pytest.approx(mast, abs=HEIGHT_TOL_M)
         assert roof > 2.0                     # a building's roof, not the ground
+    # the checker of the drive test sees a building under each roof
+    assert inside_buildings(etoile, np.column_stack([bs[:, :2], np.full(len(bs), 1.5)])).all()
 
 
 def test_sites_csv_and_nearest_serving(tmp_path):
@@ -206,3 +216,24 @@ def test_rooftop_placement_refused_on_the_canyon():
         config_from_dict({"topology": {"placement": "rooftop"}})
     assert exc.value.field == "topology.placement"
     assert Config().topology.placement == "auto"
+
+
+def test_written_crop_keeps_shared_edges(tmp_path, street_canyon):
+    """The cropped scene merges each material's buildings into one PLY with the vertices shared
+    (Sionna RT finds wedges, hence diffraction, only on edges two faces share): the six closed
+    boxes of simple_street_canyon stay closed (watertight: every edge in exactly two faces)."""
+    import trimesh
+
+    from veriloc_rt.world.scene.export import read_ply, scene_shapes
+
+    xml = street_canyon.write(tmp_path, street_canyon.ground_xy)
+    shapes = scene_shapes(xml)
+    assert shapes[-1][0] == "mesh-ground"
+    nv = nf = 0
+    for _, path, _ in shapes[:-1]:       # one PLY per building material
+        v, f = read_ply(path)
+        assert trimesh.Trimesh(vertices=v, faces=f, process=False).is_watertight
+        nv, nf = nv + len(v), nf + len(f)
+    assert (nv, nf) == (6 * 8, 6 * 12)   # 6 boxes: 8 corners, 12 triangles each
+    again = MeshScene.from_xml(xml)
+    assert len(again.building_triangles) == 6 * 12

@@ -195,8 +195,9 @@ class MeshScene:
             by_bsdf.setdefault(s.bsdf, []).append(s.triangles)
         shapes = []
         for k, (bsdf, tris) in enumerate(sorted(by_bsdf.items())):
-            t = np.concatenate(tris).reshape(-1, 3)
-            write_ply(out / "meshes" / f"buildings-{k}.ply", t, np.arange(len(t)).reshape(-1, 3))
+            # shared vertices merged: Sionna RT finds a wedge only where two faces share an edge
+            v, f = np.unique(np.concatenate(tris).reshape(-1, 3), axis=0, return_inverse=True)
+            write_ply(out / "meshes" / f"buildings-{k}.ply", v, f.reshape(-1, 3))
             shapes.append((f"buildings-{k}", bsdf))
         x0, y0, x1, y1 = ground_bounds
         gv = np.array([[x0, y0, 0.0], [x1, y0, 0.0], [x1, y1, 0.0], [x0, y1, 0.0]])
