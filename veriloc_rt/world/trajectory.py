@@ -23,6 +23,7 @@ _DIRS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # E, N, W,
 _TURN_SPEED = 4.0  # m/s through a corner (about 15 km/h)
 _DS = 0.25  # m, arc-length step of the kinematic integration
 _STOP_LINE = 6.0  # m before the intersection centre where a stopping vehicle waits
+_BEND_WINDOW_M = 5.0  # m, a graph route's heading at a vertex is taken over this distance
 #: largest trajectory CSV read, bytes (a million points of t,x,y,z at full precision: ~80 MB)
 MAX_CSV_BYTES = 128 << 20
 
@@ -233,11 +234,14 @@ def generate_graph_trajectory(cfg: TrajectoryConfig, graph, rng: np.random.Gener
     cruise = np.maximum(rng.uniform(cfg.min_speed_mps, cfg.max_speed_mps, len(pieces)), 0.5)
     edge_of = np.searchsorted(node_s, s_grid, side="right")
     vmax = cruise[edge_of]
-    # bends: heading change over 30 degrees at an interior vertex
-    d = np.diff(route, axis=0)
-    ang = np.abs(np.arctan2(d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0],
-                            np.sum(d[:-1] * d[1:], axis=1)))
-    bend_s = vertex_s[1:-1][ang > np.deg2rad(30.0)]
+    # bends: heading change over 30 degrees at an interior vertex, the headings taken over
+    # _BEND_WINDOW_M before and after it (a derived centre line's raster steps are no bends)
+    sv = vertex_s[1:-1]
+    at = [np.stack([np.interp(x, vertex_s, route[:, i]) for i in range(2)], -1)
+          for x in (sv - _BEND_WINDOW_M, sv, sv + _BEND_WINDOW_M)]
+    d0, d1 = at[1] - at[0], at[2] - at[1]
+    ang = np.abs(np.arctan2(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0], np.sum(d0 * d1, axis=1)))
+    bend_s = sv[ang > np.deg2rad(30.0)]
     bend_idx = np.minimum(np.round(bend_s / _DS).astype(int), len(s_grid) - 1)
     vmax[bend_idx] = np.minimum(vmax[bend_idx], _TURN_SPEED)
     kind = np.array(node_kind, dtype=int)
