@@ -135,7 +135,9 @@ def test_short_traced_run_on_a_cropped_bundled_scene(tmp_path):
     assert code == 0, err
     r = tmp_path / "r"
     metrics = json.loads((r / "metrics.json").read_text())
-    assert {"none", "fbs", "meaconing", "jamming"} <= set(metrics)
+    assert set(metrics["scenarios"]) == {"none", "fbs", "meaconing", "jamming"}
+    for name in ("none", "fbs", "meaconing", "jamming"):
+        assert (r / f"{name}_results.csv").read_text().count("\n") == 1 + 4   # header + points
     s = json.loads((r / "propagation_summary.json").read_text())
     assert s["num_points"] == 4 and s["num_buildings"] > 0
     assert s["bs_to_ue"]["links_with_path_pct"] > 0
