@@ -93,6 +93,9 @@ class Config:
                             "(propagation.ue_array.num_elements), or 0 for MDL")
 
     def _validate_world(self) -> None:
+        if self.scene.is_canyon and self.topology.placement == "rooftop":
+            raise bad_value("topology.placement", "rooftop", "'auto' or 'fixed' on the canyon "
+                            "(its BSs stand at topology.bs_height_m); rooftop needs a mesh scene")
         if (self.scene.is_canyon and self.trajectory.source == "generator"
                 and self.trajectory.region_m > self.scene.extent_m):
             raise bad_value("trajectory.region_m", self.trajectory.region_m,
@@ -137,16 +140,19 @@ def with_overrides(cfg: Config, *, points: int | None = None, seed: int | None =
 
 
 def _resolve_paths(cfg: Config, base: Path) -> Config:
-    scene, traj, sec = cfg.scene, cfg.trajectory, cfg.security
-    if not scene.is_canyon and not scene.osm and not Path(scene.source).is_absolute():
+    scene, traj, sec, topo = cfg.scene, cfg.trajectory, cfg.security, cfg.topology
+    if not scene.is_canyon and not scene.is_bundled and not scene.osm \
+            and not Path(scene.source).is_absolute():
         scene = dataclasses.replace(scene, source=str((base / scene.source).resolve()))
     if scene.osm and not Path(scene.osm).is_absolute():
         scene = dataclasses.replace(scene, osm=str((base / scene.osm).resolve()))
+    if topo.sites and not Path(topo.sites).is_absolute():
+        topo = dataclasses.replace(topo, sites=str((base / topo.sites).resolve()))
     if traj.source != "generator" and not Path(traj.source).is_absolute():
         traj = dataclasses.replace(traj, source=str((base / traj.source).resolve()))
     if sec.keys_dir and not Path(sec.keys_dir).is_absolute():
         sec = dataclasses.replace(sec, keys_dir=str((base / sec.keys_dir).resolve()))
-    return dataclasses.replace(cfg, scene=scene, trajectory=traj, security=sec)
+    return dataclasses.replace(cfg, scene=scene, trajectory=traj, security=sec, topology=topo)
 
 
 def config_to_dict(cfg: Config) -> dict:

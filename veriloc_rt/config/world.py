@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import importlib.util
 from dataclasses import dataclass
+from pathlib import Path
 
-from ..errors import bad_value
+from ..errors import InputError, bad_value
 from ..inputs import check_path
 from .fields import param
 
-__all__ = ["MAX_DRIVE_M", "MAX_POINTS", "MIN_ANTENNA_HEIGHT_M", "ITU_MATERIAL_RANGES_GHZ", "itu_material_problem", "SceneConfig", "TopologyConfig",
+__all__ = ["BUNDLED_PREFIX", "bundled_scene_names", "bundled_scene_xml", "MAX_DRIVE_M", "MAX_POINTS", "MIN_ANTENNA_HEIGHT_M", "ITU_MATERIAL_RANGES_GHZ", "itu_material_problem", "SceneConfig", "TopologyConfig",
            "TrajectoryConfig"]
 
 #: antennas sit above this height, m: TR 38.901's effective environment height h_E = 1 m (Table
@@ -61,12 +63,48 @@ def itu_material_problem(name: str, frequency_hz: float) -> str | None:
     return None
 
 
+#: prefix of ``scene.source`` naming a scene bundled with Sionna RT (``"sionna:munich"``)
+BUNDLED_PREFIX = "sionna:"
+
+
+def _bundled_scenes_dir() -> Path | None:
+    """Sionna RT's bundled scene folder (``sionna/rt/scenes``), found without importing Sionna
+    (importing it selects a Mitsuba variant, which :mod:`veriloc_rt.backend` must do first)."""
+    spec = importlib.util.find_spec("sionna")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return Path(list(spec.submodule_search_locations)[0]) / "rt" / "scenes"
+
+
+def bundled_scene_names() -> tuple[str, ...]:
+    """Names of the Sionna RT scenes bundled as ``<name>/<name>.xml`` (``sionna.rt.scene.<name>``)."""
+    root = _bundled_scenes_dir()
+    if root is None or not root.is_dir():
+        return ()
+    return tuple(sorted(d.name for d in root.iterdir() if (d / f"{d.name}.xml").is_file()))
+
+
+def bundled_scene_xml(name: str, field: str = "scene.source") -> Path:
+    """The XML file of bundled scene ``name``.
+
+    :raises InputError: if Sionna RT bundles no scene of that name
+    """
+    names = bundled_scene_names()
+    if name not in names:
+        raise InputError(field, f"{BUNDLED_PREFIX}{name[:40]!r} is not a scene bundled with "
+                         "Sionna RT; bundled: " + (", ".join(names) or "none (Sionna RT not found)"))
+    return _bundled_scenes_dir() / name / f"{name}.xml"
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """Propagation scene: a procedural urban canyon or an external Mitsuba XML scene."""
 
-    source: str = param("canyon", "'canyon' for the procedural Manhattan grid, or a path to a "
-                        "Sionna-compatible Mitsuba XML scene")
+    source: str = param("canyon", "'canyon' for the procedural Manhattan grid, a path to a "
+                        "Sionna-compatible Mitsuba XML scene (metres, z up, flat ground at the "
+                        "bottom, centred near the origin; a streets.json beside it gives the "
+                        "street graph), or 'sionna:<name>' for a scene bundled with Sionna RT "
+                        "(sionna:munich, sionna:etoile, sionna:florence, ...)")
     building_height_m: float = param(15.0, "mean building height", lo=1.0, hi=200.0)
     height_jitter_m: float = param(0.0, "building heights uniform in mean +- jitter (seeded)",
                                    lo=0.0, hi=100.0)
@@ -74,7 +112,8 @@ class SceneConfig:
     block_size_m: float = param(30.0, "side of the square building blocks", lo=2.0, hi=500.0)
     extent_m: float = param(450.0, "half-side of the square area the street grid covers",
                             lo=20.0, hi=5000.0)
-    margin_m: float = param(300.0, "emit only buildings within this 2-D distance of a used BS "
+    margin_m: float = param(300.0, "emit only buildings (canyon blocks, or a mesh scene's "
+                            "building shapes) within this 2-D distance of a used BS "
                             "or of the trajectory (crop: model no more than the scene needs; "
                             "cost and accuracy of the margins: docs/performance.md)",
                             lo=0.0, hi=5000.0)
@@ -104,6 +143,18 @@ class SceneConfig:
     def is_canyon(self) -> bool:
         return self.source == "canyon" and not self.osm
 
+    @property
+    def is_bundled(self) -> bool:
+        """The source names a scene bundled with Sionna RT (``sionna:<name>``)."""
+        return self.source.startswith(BUNDLED_PREFIX)
+
+    @property
+    def xml_path(self) -> Path:
+        """The XML file of a mesh scene (a path as given, or a bundled scene's file)."""
+        if self.is_bundled:
+            return bundled_scene_xml(self.source[len(BUNDLED_PREFIX):])
+        return Path(self.source)
+
     def validate(self, path: str) -> None:
         if self.osm:
             check_path(self.osm, f"{path}.osm")
@@ -121,10 +172,14 @@ class SceneConfig:
                             "< lat_max <= 90")
         if self.osm:
             return
+        if self.is_bundled:
+            bundled_scene_xml(self.source[len(BUNDLED_PREFIX):], f"{path}.source")
+            return
         if not self.is_canyon:
             check_path(self.source, f"{path}.source")
         if not self.is_canyon and not self.source.endswith(".xml"):
-            raise bad_value(f"{path}.source", self.source, "'canyon' or a path ending in .xml")
+            raise bad_value(f"{path}.source", self.source, "'canyon', 'sionna:<name>' or a "
+                            "path ending in .xml")
 
 
 @dataclass(frozen=True)
@@ -140,13 +195,31 @@ class TopologyConfig:
     random_offset: bool = param(True, "random offset and rotation of the layout per Monte Carlo "
                                 "iteration, drawn from the seed")
     iteration: int = param(0, "Monte Carlo iteration index (selects the layout draw)", lo=0)
+    placement: str = param("auto", "BS heights: 'fixed' (every BS at bs_height_m above the "
+                           "ground), 'rooftop' (each hexagonal site moved to the nearest roof of "
+                           "a mesh scene, mast_height_m above its highest point there), 'auto' "
+                           "(fixed on the canyon, rooftop on a mesh scene)",
+                           choices=("auto", "fixed", "rooftop"))
+    mast_height_m: float = param(3.0, "antenna height above the roof for rooftop placement "
+                                 "(a stated default: a short rooftop mast; no standard fixes it)",
+                                 lo=0.5, hi=100.0)
+    sites: str = param("", "CSV of BS sites with header x,y,z[,azimuth_deg] (m, scene frame; "
+                       "z above the ground) replacing the hexagonal layout; each UE point is "
+                       "served by its 3 nearest sites. Empty: the hexagonal layout")
+
+    def validate(self, path: str) -> None:
+        if self.sites:
+            check_path(self.sites, f"{path}.sites")
 
 
 @dataclass(frozen=True)
 class TrajectoryConfig:
     """UE path (street-following generator or CSV) and the adversary that follows it."""
 
-    source: str = param("generator", "'generator' or a CSV path with columns t,x,y[,z]")
+    source: str = param("generator", "'generator' (on the canyon's street grid, or on a mesh "
+                        "scene's street graph: streets.json beside its XML, else derived from "
+                        "the free space at ue_height_m, 1 m from every wall) or a CSV path with "
+                        "columns t,x,y[,z]")
     num_points: int = param(120, "number of trajectory points (the built-in default is small "
                             "enough for a few minutes; configs/paper-*.json use the paper's "
                             "1200). The maximum bounds a run's memory and time: it holds every "

@@ -36,9 +36,13 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
         rects(geometry.full_canyon.footprints, facecolor="0.88", edgecolor="none")
         rects(scene.footprints, facecolor="0.45", edgecolor="none")
     else:
-        tri = scene.triangles
-        ax.add_collection(matplotlib.collections.PolyCollection(
-            tri[:, :, :2], facecolor="0.6", edgecolor="none", alpha=0.3))
+        # a mesh scene's buildings seen from above: their faces projected (walls project to
+        # their outlines, roofs fill the footprints); light: left out by the crop
+        full = getattr(geometry, "full_mesh", None)
+        for s, colour in (((full or scene), "0.88"), (scene, "0.45")):
+            tri = s.building_triangles
+            ax.add_collection(matplotlib.collections.PolyCollection(
+                tri[:, :, :2], facecolor=colour, edgecolor=colour, linewidths=0.3))
     ue = geometry.ue.pos
     seg = np.stack([ue[:-1, :2], ue[1:, :2]], axis=1)
     lc = LineCollection(seg, cmap="viridis", linewidths=2.0)
@@ -49,15 +53,22 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
     ax.plot(adv[::5, 0], adv[::5, 1], ".", color="tab:orange", ms=3, label="adversary (every 5th)")
     ax.plot(ue[0, 0], ue[0, 1], "o", color="tab:green", ms=8, label="UE start")
     layout = geometry.layout
-    cells = np.unique(layout.cell_of(ue[:, :2]), axis=0)
-    ang = np.deg2rad(np.arange(0, 361, 60) + 30.0) + layout.rotation
-    for c in layout.cell_centre(cells):
-        ax.plot(c[0] + layout.side * np.cos(ang), c[1] + layout.side * np.sin(ang), "--",
-                color="tab:red", lw=0.8, alpha=0.6)
+    if layout is not None:
+        cells = np.unique(layout.cell_of(ue[:, :2]), axis=0)
+        ang = np.deg2rad(np.arange(0, 361, 60) + 30.0) + layout.rotation
+        for c in layout.cell_centre(cells):
+            ax.plot(c[0] + layout.side * np.cos(ang), c[1] + layout.side * np.sin(ang), "--",
+                    color="tab:red", lw=0.8, alpha=0.6)
     bs = geometry.bs_pos
     ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", ms=11, mec="k", label="serving BSs")
     for i, p in enumerate(bs):
-        ax.annotate(f"BS{i}", p[:2], textcoords="offset points", xytext=(6, 6), fontsize=9)
+        ax.annotate(f"BS{i} ({p[2]:.0f} m)", p[:2], textcoords="offset points", xytext=(6, 6),
+                    fontsize=9)
+    az = getattr(geometry, "bs_azimuth", None)
+    if az is not None and np.any(np.isfinite(az)):
+        on = np.isfinite(az)
+        ax.quiver(bs[on, 0], bs[on, 1], np.cos(az[on]), np.sin(az[on]), color="tab:red",
+                  scale=25, width=0.004)
     if estimated_xy is not None:
         ax.plot(estimated_xy[:, 0], estimated_xy[:, 1], "x", color="tab:purple", ms=3,
                 label="estimated")

@@ -28,7 +28,7 @@ from ..world.scene.osm import OSM_MATERIALS
 log = logging.getLogger(__name__)
 
 __all__ = ["check_inputs", "check_materials", "check_run_inputs", "warn_adversary",
-           "warn_unreachable"]
+           "warn_unreachable", "warn_silent_bs"]
 
 #: arc lengths along the path are sums of float64 steps over at most a few hundred km: equal
 #: gaps agree to ~1e-10 m; a gap within this of adversary_min_separation_m is that minimum
@@ -112,7 +112,7 @@ def check_materials(cfg: Config) -> None:
         if problem:
             raise InputError("scene.ground_material", f"{problem} (propagation.carrier_frequency_hz)")
         return
-    for name in scene_itu_materials(cfg.scene.source):
+    for name in scene_itu_materials(cfg.scene.xml_path):
         problem = itu_material_problem(name, f)
         if problem:
             raise InputError("scene.source", f"{cfg.scene.source}: {problem}")
@@ -152,3 +152,21 @@ def warn_unreachable(has_path: np.ndarray) -> int:
                     "around the trajectory, BSs inside buildings) and topology.bs_height_m",
                     where, "every point is" if n == total else "each is")
     return n
+
+
+def warn_silent_bs(has_path: np.ndarray, serving: np.ndarray) -> list[int]:
+    """Warn about BSs that reach the UE at none of the points they serve (a mast below the
+    roofs, behind a building for the whole drive); return their ids.
+
+    :param has_path: [num_points, 3] bool, the serving link has a path
+    :param serving: [num_points, 3] int64, BS ids of the serving links
+    """
+    silent = [int(b) for b in np.unique(serving) if not has_path[serving == b].any()]
+    if silent:
+        log.warning("BS %s reach%s the UE at none of the points %s: every link from %s has "
+                    "no propagation path; check the BS positions (topology.placement, "
+                    "topology.sites, topology.bs_height_m)",
+                    ", ".join(map(str, silent)), "es" if len(silent) == 1 else "",
+                    "it serves" if len(silent) == 1 else "they serve",
+                    "it" if len(silent) == 1 else "them")
+    return silent

@@ -43,7 +43,7 @@ from ..report.propagation_summary import summarize
 from ..report.results import ResultsWriter, read_rows, results_path, scenario_metrics
 from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
-from .checks import check_run_inputs, warn_unreachable
+from .checks import check_run_inputs, warn_silent_bs, warn_unreachable
 from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
 from .chain_store import ChainStore, config_digest
 from .run_folder import (CHAIN_FILE, check_fresh, check_resume, clear_run_files, locked, run_keys,
@@ -182,6 +182,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
     warn_unreachable(prop.bs_ue.has_path())
+    warn_silent_bs(prop.bs_ue.has_path(), geometry.serving)
     summary = propagation_summary(geometry, prop)
     if out:
         atomic_write_text(out / "propagation_summary.json", json.dumps(summary, indent=2))

@@ -23,6 +23,7 @@ _DIRS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # E, N, W,
 _TURN_SPEED = 4.0  # m/s through a corner (about 15 km/h)
 _DS = 0.25  # m, arc-length step of the kinematic integration
 _STOP_LINE = 6.0  # m before the intersection centre where a stopping vehicle waits
+_BEND_WINDOW_M = 5.0  # m, a graph route's heading at a vertex is taken over this distance
 #: largest trajectory CSV read, bytes (a million points of t,x,y,z at full precision: ~80 MB)
 MAX_CSV_BYTES = 128 << 20
 
@@ -172,6 +173,123 @@ def generate_street_trajectory(cfg: TrajectoryConfig, canyon, rng: np.random.Gen
     return Trajectory(t, pos, _velocity(t, pos), s, path)
 
 
+def generate_graph_trajectory(cfg: TrajectoryConfig, graph, rng: np.random.Generator) -> Trajectory:
+    """Drive along the edges of a street graph (:class:`~veriloc_rt.world.streets.StreetGraph`)
+    with the canyon generator's kinematics.
+
+    Route: from the node nearest the origin along a random edge (the UE's first point lies
+    ``adversary_min_separation_m`` along it, so the adversary starts on the route); at each node go straight (the
+    edge whose start heading is closest to the arrival heading) or, with ``turn_probability``,
+    take one of the other edges at random; a dead end turns back. Speed: a cruise speed per edge
+    drawn in [min_speed, max_speed], at most 4 m/s through a change of heading over 30 degrees
+    (at nodes and at an edge's bends), a full stop to turn back at a dead end, full stops
+    (``stop_probability``, dwell up to ``max_stop_s``) at junctions of three or more streets, on
+    the stop line 6 m before the junction (or halfway along a shorter edge), acceleration and
+    braking limited to ``accel_mps2``.
+
+    :raises InputError: if the graph has no street
+    """
+    if not len(graph.edges):
+        raise InputError("trajectory.source", "the street graph has no street to drive along")
+    nbrs = graph.neighbours()
+    deg = np.array([len(n) for n in nbrs])
+    total_time = (cfg.num_points - 1) * cfg.dt_s
+    # the UE starts adversary_min_separation_m into the route, so that the adversary waiting
+    # behind it (:func:`follower`) stands on the route too
+    lead = cfg.adversary_min_separation_m
+    need = total_time * cfg.max_speed_mps + lead + 50.0
+    cur = int(np.argmin(np.where(deg > 0, np.linalg.norm(graph.nodes, axis=1), np.inf)))
+    e, nxt = nbrs[cur][int(rng.integers(len(nbrs[cur])))]
+    pieces, node_kind, length = [], [], 0.0   # node_kind: 0 pass, 1 junction, 2 dead end
+    while True:
+        poly = graph.polylines[e] if int(graph.edges[e, 0]) == cur else graph.polylines[e][::-1]
+        pieces.append(poly)
+        length += float(np.linalg.norm(np.diff(poly, axis=0), axis=1).sum())
+        cur = nxt
+        if length >= need:
+            break
+        heading = poly[-1] - poly[-2]
+        options = [(oe, on) for oe, on in nbrs[cur] if oe != e]
+        if not options:
+            node_kind.append(2)
+            e, nxt = e, int(graph.edges[e, 0] if graph.edges[e, 1] == cur else graph.edges[e, 1])
+            continue
+        node_kind.append(1 if deg[cur] >= 3 else 0)
+        turn = [_turn_angle(heading, _start_dir(graph, oe, cur)) for oe, _ in options]
+        order = np.argsort(turn, kind="stable")
+        pick = int(order[0])
+        if len(options) > 1 and rng.uniform() < cfg.turn_probability:
+            pick = int(order[1 + rng.integers(len(options) - 1)])
+        e, nxt = options[pick]
+    # --- route polyline, node arc lengths, speed limits --------------------------------------
+    route = [pieces[0]] + [p[1:] for p in pieces[1:]]
+    ends = np.cumsum([len(p) - (0 if k == 0 else 1) for k, p in enumerate(pieces)]) - 1
+    route = np.concatenate(route)
+    seg = np.linalg.norm(np.diff(route, axis=0), axis=1)
+    keep = np.concatenate([[True], seg > 1e-9])
+    vertex_s = np.concatenate([[0.0], np.cumsum(seg)])
+    node_s = vertex_s[ends[:-1]]                     # the nodes between edges
+    route, vertex_s = route[keep], vertex_s[keep]
+    s_grid = np.arange(0.0, vertex_s[-1] + _DS / 2, _DS)
+    cruise = np.maximum(rng.uniform(cfg.min_speed_mps, cfg.max_speed_mps, len(pieces)), 0.5)
+    edge_of = np.searchsorted(node_s, s_grid, side="right")
+    vmax = cruise[edge_of]
+    # bends: heading change over 30 degrees at an interior vertex, the headings taken over
+    # _BEND_WINDOW_M before and after it (a derived centre line's raster steps are no bends)
+    sv = vertex_s[1:-1]
+    at = [np.stack([np.interp(x, vertex_s, route[:, i]) for i in range(2)], -1)
+          for x in (sv - _BEND_WINDOW_M, sv, sv + _BEND_WINDOW_M)]
+    d0, d1 = at[1] - at[0], at[2] - at[1]
+    ang = np.abs(np.arctan2(d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0], np.sum(d0 * d1, axis=1)))
+    bend_s = sv[ang > np.deg2rad(30.0)]
+    bend_idx = np.minimum(np.round(bend_s / _DS).astype(int), len(s_grid) - 1)
+    vmax[bend_idx] = np.minimum(vmax[bend_idx], _TURN_SPEED)
+    kind = np.array(node_kind, dtype=int)
+    n_idx = np.minimum(np.round(node_s / _DS).astype(int), len(s_grid) - 1)
+    vmax[n_idx[kind == 2]] = 0.0
+    stops = (rng.uniform(size=len(node_s)) < cfg.stop_probability) & (kind == 1)
+    dwell = np.where(stops, rng.uniform(1.0, max(cfg.max_stop_s, 1.0), len(node_s)), 0.0)
+    prev_s = np.concatenate([[0.0], node_s[:-1]])
+    stop_s = np.maximum(node_s - np.minimum(_STOP_LINE, 0.5 * (node_s - prev_s)), 0.0)
+    stop_idx = np.minimum(np.round(stop_s / _DS).astype(int), len(s_grid) - 1)
+    vmax[stop_idx[stops]] = 0.0
+    vmax[0] = 0.0   # the drive starts from standstill
+    v2 = vmax ** 2
+    for i in range(1, len(v2)):
+        v2[i] = min(v2[i], v2[i - 1] + 2 * cfg.accel_mps2 * _DS)
+    for i in range(len(v2) - 2, -1, -1):
+        v2[i] = min(v2[i], v2[i + 1] + 2 * cfg.accel_mps2 * _DS)
+    v = np.sqrt(v2)
+    dt_steps = _DS / np.maximum(0.5 * (v[1:] + v[:-1]), 1e-3)
+    arrive_dwell = np.zeros(len(s_grid))
+    np.add.at(arrive_dwell, stop_idx[stops], dwell[stops])
+    t_grid = np.concatenate([[0.0], np.cumsum(dt_steps)]) + np.cumsum(arrive_dwell)
+    t_aug = np.concatenate([t_grid - arrive_dwell, t_grid])
+    s_aug = np.concatenate([s_grid, s_grid])
+    order = np.lexsort((s_aug, t_aug))
+    t_aug, s_aug = t_aug[order], s_aug[order]
+    t0 = float(np.interp(lead, s_grid, t_grid - arrive_dwell))
+    t = np.arange(cfg.num_points) * cfg.dt_s
+    if t0 + t[-1] > t_aug[-1]:
+        raise InputError("trajectory.num_points", f"the street graph cannot hold a "
+                         f"{t[-1]:g} s drive (its route ends after {t_aug[-1] - t0:.1f} s)")
+    s = np.interp(t0 + t, t_aug, s_aug)
+    path = np.concatenate([route, np.full((len(route), 1), cfg.ue_height_m)], axis=1)
+    traj = Trajectory(t, np.zeros((len(t), 3)), np.zeros((len(t), 3)), s, path)
+    pos = traj.at_arclength(s)
+    return Trajectory(t, pos, _velocity(t, pos), s, path)
+
+
+def _start_dir(graph, edge: int, node: int) -> np.ndarray:
+    poly = graph.polylines[edge] if int(graph.edges[edge, 0]) == node else graph.polylines[edge][::-1]
+    return poly[1] - poly[0]
+
+
+def _turn_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Unsigned angle between two directions, rad."""
+    return float(abs(math.atan2(a[0] * b[1] - a[1] * b[0], float(np.dot(a, b)))))
+
+
 def load_csv_trajectory(path: str | Path, cfg: TrajectoryConfig) -> Trajectory:
     """Read ``t,x,y[,z]`` (header row required; z defaults to ``ue_height_m``).
 
@@ -247,7 +365,7 @@ def check_points(scene, pos: np.ndarray, what: str, source: str) -> None:
         raise InputError(source, f"{what} point {k} at ({pos[k, 0]:.1f}, {pos[k, 1]:.1f}) m is "
                          "outside the scene")
     if hasattr(scene, "pitch"):
-        inside = scene.inside_building(pos[:, :2]) & (pos[:, 2] < _height_at(scene, pos))
+        inside = scene.inside_building(pos[:, :2]) & (pos[:, 2] < roof_height(scene, pos))
     else:
         inside = scene.inside_building(pos)
     if np.any(inside):
@@ -256,7 +374,7 @@ def check_points(scene, pos: np.ndarray, what: str, source: str) -> None:
                          f"{pos[k, 2]:.1f}) m is inside a building; points must lie in streets")
 
 
-def _height_at(canyon, pos: np.ndarray) -> np.ndarray:
+def roof_height(canyon, pos: np.ndarray) -> np.ndarray:
     """Roof height of the block under each point (0 in streets)."""
     fp = canyon.footprints
     h = np.zeros(len(pos))

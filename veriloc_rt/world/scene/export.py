@@ -53,10 +53,17 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
     name = str(path)
     data = read_bytes(path, name, "mesh file", MAX_MESH_BYTES)
     try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=Path(path).suffix.lstrip(".").lower(),
-                            force="mesh", process=False)
-        vertices = np.asarray(mesh.vertices, dtype=float).reshape(-1, 3)
-        faces = np.asarray(mesh.faces, dtype=np.int64)
+        kind = Path(path).suffix.lstrip(".").lower()
+        if kind == "ply":   # trimesh's PLY parser alone: 5x faster than trimesh.load's scene
+            from trimesh.exchange.ply import load_ply   # graph (2367 files of sionna:munich)
+
+            kw = load_ply(io.BytesIO(data))
+            vertices = np.asarray(kw["vertices"], dtype=float).reshape(-1, 3)
+            faces = np.asarray(kw.get("faces", np.zeros((0, 3))), dtype=np.int64)
+        else:
+            mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=False)
+            vertices = np.asarray(mesh.vertices, dtype=float).reshape(-1, 3)
+            faces = np.asarray(mesh.faces, dtype=np.int64)
     except Exception as exc:  # noqa: BLE001 - a third-party parser on user bytes: any failure
         reason = " ".join(str(exc).split())[:120] or type(exc).__name__
         raise InputError(name, f"not a readable triangle mesh ({reason})") from None
@@ -143,11 +150,21 @@ def scene_mesh_files(xml_path: str | Path, field: str = "scene.source") -> list[
 
     :raises InputError: if the file is missing, not XML, or references missing meshes
     """
+    return [path for _, path, _ in scene_shapes(xml_path, field)]
+
+
+def scene_shapes(xml_path: str | Path, field: str = "scene.source") -> list[tuple[str, Path, str]]:
+    """The mesh shapes of an XML scene: (shape id, mesh file, id of the material it refers to,
+    "" for none), in document order; mesh paths are resolved against the XML's folder.
+
+    :raises InputError: if the file is missing, not XML, or references missing meshes
+    """
     root = _scene_root(xml_path, field)
     xml_path = Path(xml_path)
     folder = xml_path.parent.resolve()
-    files = []
-    for shape in root.iter("shape"):
+    shapes = []
+    for k, shape in enumerate(root.iter("shape")):
+        bsdf = next((r.get("id", "") for r in shape.iter("ref")), "")
         for s in shape.iter("string"):
             if s.get("name") == "filename":
                 ref = check_path(s.get("value", ""), field)
@@ -157,10 +174,18 @@ def scene_mesh_files(xml_path: str | Path, field: str = "scene.source") -> list[
                                      "outside the scene's folder")
                 if not p.exists():  # anything but a regular file: read_ply says so
                     raise InputError(field, f"{str(xml_path)!r} references missing mesh {str(p)!r}")
-                files.append(p)
-    if not files:
+                shapes.append((shape.get("id") or f"shape-{k}", p, bsdf))
+    if not shapes:
         raise InputError(field, f"{str(xml_path)!r} has no mesh shapes")
-    return files
+    return shapes
+
+
+def scene_bsdfs(xml_path: str | Path, field: str = "scene.source") -> dict[str, str]:
+    """The top-level material definitions of an XML scene: id -> the ``<bsdf>`` element as XML
+    text (copied verbatim into a cropped scene)."""
+    root = _scene_root(xml_path, field)
+    return {b.get("id"): ET.tostring(b, encoding="unicode").strip()
+            for b in root.findall("bsdf") if b.get("id")}
 
 
 def scene_itu_materials(xml_path: str | Path, field: str = "scene.source") -> list[str]:

@@ -349,8 +349,8 @@ def test_bad_extracts_one_line_exit_2(tmp_path, capsys):
 
 
 def test_config_field_builds_the_run_scene(tmp_path):
-    """scene.osm in a config: the run's geometry is the imported scene (a CSV drive here: the
-    street generator needs the canyon until the street-graph trajectories land)."""
+    """scene.osm in a config: the run's geometry is the imported scene (in the scene folder's
+    osm/, streets.json beside it), cropped like any mesh scene (a CSV drive here)."""
     import shapely
 
     from veriloc_rt.config import config_from_dict, load_config
@@ -369,8 +369,8 @@ def test_config_field_builds_the_run_scene(tmp_path):
     cfg = load_config(tmp_path / "cfg.json")
     geo = build_geometry(cfg, tmp_path / "scene")
     assert geo.scene_xml == tmp_path / "scene" / "scene.xml"
-    assert (tmp_path / "scene" / "streets.json").is_file()
-    tri = geo.scene.triangles
+    assert (tmp_path / "scene" / "osm" / "streets.json").is_file()
+    tri = geo.full_mesh.triangles
     assert tri[:, :, 2].max() == pytest.approx(city.heights.max())
     with pytest.raises(InputError, match="scene.source: .* 'canyon' when scene.osm is set"):
         config_from_dict({"scene": {"osm": "x.osm", "source": "other.xml"}})

@@ -1,0 +1,136 @@
+"""BS sites that respect a mesh scene: the hexagonal layout moved onto the nearest roof, or
+sites read from a CSV file; serving sets for CSV sites.
+
+Rooftop placement: the scene's buildings are rasterised at :data:`ROOF_GRID_M`; a site moves
+to the centre of the nearest roof cell at least :data:`ROOF_EDGE_M` inside its building's
+outline (a mast is not put on the parapet) and its antenna stands ``mast`` above the highest
+building surface over that point, so it is above its roof and never inside a building.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..inputs import read_text
+from ..config.world import MIN_ANTENNA_HEIGHT_M
+from .scene.raster import rasterize
+
+#: raster resolution of the roof search, m
+ROOF_GRID_M = 1.0
+#: a rooftop mast stands at least this far inside the building's outline, m
+ROOF_EDGE_M = 2.0
+#: height at which "under a roof" is probed, m (above a floor slab at the ground)
+_PROBE_Z_M = 1.0
+#: largest sites CSV read, bytes
+MAX_SITES_BYTES = 1 << 20
+#: serving BSs per point
+SERVING = 3
+
+
+def rooftop_sites(scene, sites_xy: np.ndarray, mast: float) -> np.ndarray:
+    """Move each site to the nearest roof point of ``scene`` and raise it ``mast`` above it.
+
+    :param scene: a :class:`~veriloc_rt.world.scene.external.MeshScene`
+    :param sites_xy: [num_sites, 2] float64, m
+    :returns: [num_sites, 3] float64, m
+    :raises InputError: if the scene has no roof wide enough for a mast
+    """
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
+
+    grid = rasterize(scene.building_triangles, scene.ground_xy, ROOF_GRID_M, _PROBE_Z_M)
+    # cells under a roof, with the building's interior at least ROOF_EDGE_M deep around them
+    under = grid.inside & np.isfinite(grid.roof_z)
+    depth = ndimage.distance_transform_edt(under) * ROOF_GRID_M
+    ok = np.argwhere(depth > ROOF_EDGE_M)
+    if not len(ok):
+        raise InputError("topology.placement", "the scene has no roof wide enough for a "
+                         f"rooftop mast ({2 * ROOF_EDGE_M:g} m across): topology.placement "
+                         "'fixed' or topology.sites")
+    centres = grid.centres(ok)
+    _, k = cKDTree(centres).query(np.asarray(sites_xy, dtype=float).reshape(-1, 2))
+    ij = ok[k]
+    z = grid.roof_z[ij[:, 0], ij[:, 1]] + mast
+    return np.concatenate([centres[k], z[:, None]], axis=1)
+
+
+def load_sites(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a sites CSV ``x,y,z[,azimuth_deg]`` (header row required; m; z above the ground).
+
+    :returns: positions [num_sites, 3] float64, m; azimuths [num_sites] float64, rad (NaN where
+        not given; the BS antennas are isotropic, so an azimuth only marks the plots)
+    :raises InputError: naming the file and line of anything unusable
+    """
+    field = "topology.sites"
+    name = str(path)
+    text = read_text(path, field, "sites file", MAX_SITES_BYTES)
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
+        raise InputError(name, f"not a readable CSV file ({exc})") from None
+    if not rows:
+        raise InputError(name, "empty file, expected a header x,y,z[,azimuth_deg] and rows")
+    header = [h.strip().lower() for h in rows[0]]
+    if header[:3] != ["x", "y", "z"] or header[3:] not in ([], ["azimuth_deg"], ["azimuth"]):
+        raise InputError(name, f"header {','.join(rows[0])[:60]!r}, expected 'x,y,z' or "
+                         "'x,y,z,azimuth_deg'")
+    pos, az = [], []
+    for i, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"{name}:{i}", f"{len(row)} columns, expected {len(header)}")
+        try:
+            vals = [float(c) for c in row]
+        except ValueError:
+            raise InputError(f"{name}:{i}", f"non-numeric value in {','.join(row)[:60]!r}") from None
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError(f"{name}:{i}", f"non-finite value in {','.join(row)[:60]!r}")
+        if vals[2] <= MIN_ANTENNA_HEIGHT_M:
+            raise InputError(f"{name}:{i}", f"z = {vals[2]:g} m, expected a BS height above "
+                             f"{MIN_ANTENNA_HEIGHT_M:g} m (TR 38.901's h_E)")
+        if len(vals) == 4 and not -360.0 <= vals[3] <= 360.0:
+            raise InputError(f"{name}:{i}", f"azimuth {vals[3]:g} deg, expected -360 to 360")
+        pos.append(vals[:3])
+        az.append(math.radians(vals[3]) if len(vals) == 4 else math.nan)
+    if len(pos) < SERVING:
+        raise InputError(name, f"{len(pos)} sites, expected at least {SERVING} (each point is "
+                         f"served by its {SERVING} nearest)")
+    p = np.array(pos)
+    dup = _first_duplicate(p)
+    if dup is not None:
+        raise InputError(name, f"sites {dup[0] + 1} and {dup[1] + 1} stand at the same position")
+    return p, np.array(az)
+
+
+def _first_duplicate(p: np.ndarray) -> tuple[int, int] | None:
+    for i in range(len(p)):
+        same = np.flatnonzero(np.all(np.abs(p[i + 1:] - p[i]) < 1e-6, axis=1))
+        if len(same):
+            return i, i + 1 + int(same[0])
+    return None
+
+
+def nearest_serving(sites: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The :data:`SERVING` nearest sites (horizontal distance, ties by file order) serve each
+    point, nearest first; BS ids in order of first use, as the hexagonal layout numbers them.
+
+    :param sites: [num_sites, 3] float64, m; xy: [num_points, 2] float64, m
+    :returns: (bs_pos [num_bs, 3] float64 m, serving [num_points, 3] int64 ids into bs_pos,
+        site index of each BS [num_bs] int64)
+    """
+    d = np.linalg.norm(np.asarray(xy)[:, None, :2] - sites[None, :, :2], axis=-1)
+    near = np.argsort(d, axis=1, kind="stable")[:, :SERVING]
+    order: dict[int, int] = {}
+    serving = np.empty_like(near)
+    for k in range(near.shape[0]):
+        for j in range(SERVING):
+            serving[k, j] = order.setdefault(int(near[k, j]), len(order))
+    used = np.array(list(order), dtype=np.int64)
+    return sites[used], serving, used
