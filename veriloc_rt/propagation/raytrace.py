@@ -60,7 +60,7 @@ from .sionna_rt import RawPaths, sampled_diffraction
 log = logging.getLogger(__name__)
 
 #: Bump when the cached array layout or the tracing recipe changes (8: entries carry a checksum)
-CACHE_VERSION = 9
+CACHE_VERSION = 10
 
 #: RayTracingConfig fields that do not change what a PathSolver call returns (the cache holds
 #: polarimetric paths; antenna polarizations are applied after it)

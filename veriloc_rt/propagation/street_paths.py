@@ -69,6 +69,13 @@ SEED_REFLECTIONS = 1
 #: ``plane_distance`` of their end (the street's own roof edges further along the street)
 WEDGE_REACH = 2.0
 
+#: Reflection chains use at most this many planes near an end: the nearest by the distance to
+#: their faces. The canyon has at most 11 planes within the default 30 m of any end (its
+#: facades are long); a real city's mesh has hundreds to thousands (every facade segment,
+#: roof slope and detail its own plane), and chains of up to three reflections over all of them
+#: exhaust the memory (docs/real-cities.md)
+MAX_NEAR_PLANES = 12
+
 #: Two traced paths are one when their interaction sequences are equal, their delays within
 #: link_metrics.SAME_PATH_TOL_S (the project's path identity) and their angles at both ends
 #: within SAME_ANGLE_RAD
@@ -88,6 +95,8 @@ class SceneGeometry:
     edge_n : [num_wedges, 2, 3] the faces' outward unit normals
     edge_ends : [num_wedges, 2] int ids of the end points (equal ids: the same point)
     edge_plane : [num_wedges, 2] int the planes of the two faces
+    tri : [num_triangles, 3, 3] m every triangle;  tri_plane : [num_triangles] int its plane
+        (-1: degenerate)
     """
 
     plane_n: np.ndarray
@@ -103,11 +112,13 @@ class SceneGeometry:
     edge_n: np.ndarray
     edge_ends: np.ndarray
     edge_plane: np.ndarray
+    tri: np.ndarray
+    tri_plane: np.ndarray
 
     @classmethod
     def from_meshes(cls, meshes: list[tuple[int, np.ndarray, np.ndarray]]) -> "SceneGeometry":
         """:param meshes: (shape pointer, vertices [nv, 3], faces [nf, 3]) per mesh"""
-        pn, pd, ps, pp, ppt = [], [], [], [], []
+        pn, pd, ps, pp, ppt, tris, tplanes = [], [], [], [], [], [], []
         ea, eb, es, ep, el, en, eq = [], [], [], [], [], [], []
         num_planes = 0
         for ptr, v, f in meshes:
@@ -126,6 +137,8 @@ class SceneGeometry:
             tri_plane = np.full(len(f), -1)
             tri_plane[ok] = num_planes + np.argsort(np.argsort(first))[group.ravel()]
             num_planes += len(idx)
+            tris.append(v[f])
+            tplanes.append(tri_plane)
             pn.append(n[idx])
             pd.append(d[idx])
             ps.append(np.full(len(idx), ptr, np.uint32))
@@ -164,7 +177,9 @@ class SceneGeometry:
                    edge_prim=np.array(ep, np.uint32).reshape(-1, 2),
                    edge_local=np.array(el, np.uint8).reshape(-1, 2),
                    edge_n=np.array(en).reshape(-1, 2, 3),
-                   edge_plane=np.array(eq, np.int64).reshape(-1, 2))
+                   edge_plane=np.array(eq, np.int64).reshape(-1, 2),
+                   tri=cat(tris).reshape(-1, 3, 3) if tris else np.zeros((0, 3, 3)),
+                   tri_plane=cat(tplanes) if tplanes else np.zeros(0, np.int64))
 
     def with_neighbours(self, wedges: np.ndarray) -> np.ndarray:
         """The given wedges and every wedge sharing an end point with one of them. -> [k] int"""
@@ -525,10 +540,25 @@ def _assemble(geo: SceneGeometry, parts: list[dict], max_depth: int) -> Candidat
                       wedge=wedge, face0=face0)
 
 
-def near_planes(geo: SceneGeometry, p: np.ndarray, dist: float) -> np.ndarray:
-    """Planes within ``dist`` of ``p`` (either side). -> [k] int"""
+def near_planes(geo: SceneGeometry, p: np.ndarray, dist: float,
+                max_planes: int = MAX_NEAR_PLANES) -> np.ndarray:
+    """Planes within ``dist`` of ``p`` (either side); of more than ``max_planes``, the
+    ``max_planes`` whose faces come nearest to ``p`` (ties by index). -> [k] int, ascending"""
     h = geo.plane_n @ p - geo.plane_d
-    return np.flatnonzero(np.abs(h) <= dist)
+    near = np.flatnonzero(np.abs(h) <= dist)
+    if len(near) <= max_planes:
+        return near
+    from trimesh.triangles import closest_point
+
+    sel = np.flatnonzero(np.isin(geo.tri_plane, near))
+    gap = np.linalg.norm(closest_point(geo.tri[sel], np.repeat(p[None], len(sel), axis=0)) - p,
+                         axis=1)
+    face = np.full(geo.num_planes, np.inf)
+    np.minimum.at(face, geo.tri_plane[sel], gap)
+    order = near[np.lexsort((near, face[near]))]
+    log.debug("%d planes within %.0f m of %s: reflections on the %d nearest", len(near), dist,
+              np.round(p, 1), max_planes)
+    return np.sort(order[:max_planes])
 
 
 def duplicates(tau: np.ndarray, angles: np.ndarray, inter: np.ndarray,

@@ -69,6 +69,32 @@ def _street_geometry() -> sp.SceneGeometry:
     return sp.SceneGeometry.from_meshes([(1, v, f)])
 
 
+def test_near_planes_keeps_the_nearest_faces_when_there_are_many():
+    """Twenty small square plates (1 m, facing +x), plate k on the plane x = k (all 20 within
+    30 m of the origin's plane distance) but offset along y by 40 - 2k: the distance from the
+    origin to plate k's face is the hypotenuse sqrt(dx^2 + dy^2) of its nearest point, computed
+    here in closed form. With more than MAX_NEAR_PLANES planes in reach, the ones kept are the
+    MAX_NEAR_PLANES nearest by that distance, not by the planes' own distance (k)."""
+    verts, faces = [], []
+    for k in range(20):
+        x, y0 = float(k), 40.0 - 2.0 * k
+        base = len(verts)
+        verts += [[x, y0, 0.0], [x, y0 + 1.0, 0.0], [x, y0 + 1.0, 1.0], [x, y0, 1.0]]
+        faces += [[base, base + 1, base + 2], [base, base + 2, base + 3]]   # normal +x
+    geo = sp.SceneGeometry.from_meshes([(1, np.array(verts), np.array(faces))])
+    assert geo.num_planes == 20
+    origin = np.zeros(3)
+    # nearest point of plate k: (k, clamp(0, y0, y0 + 1), 0)
+    y0 = 40.0 - 2.0 * np.arange(20)
+    dist = np.hypot(np.arange(20.0), np.clip(0.0, y0, y0 + 1.0))
+    want = np.argsort(dist, kind="stable")[:sp.MAX_NEAR_PLANES]
+    got = sp.near_planes(geo, origin, 30.0)
+    x_of_plane = geo.plane_d * geo.plane_n[:, 0]          # plane x = d (normal +x)
+    assert sorted(np.round(x_of_plane[got]).astype(int)) == sorted(want.tolist())
+    # few planes in reach: every one, as before (the plane distance alone)
+    assert len(sp.near_planes(geo, origin, 5.5)) == 6
+
+
 def test_reflection_chains_alternate_between_reachable_planes():
     geo = _street_geometry()
     assert geo.num_planes == 3
