@@ -52,15 +52,28 @@ def config_digest(cfg: Config) -> bytes:
     return hashlib.sha256(json.dumps(config_to_dict(cfg), sort_keys=True).encode()).digest()
 
 
-def _enc(obj, blob: list):
+class _Blob(list):
+    """The arrays' raw bytes of one payload, in order, with their running length (the offset
+    of the next one: summing the lengths at each array made encoding quadratic in the arrays)."""
+
+    size = 0
+
+    def add(self, data: bytes) -> int:
+        """Append ``data``; its offset in the payload's blob."""
+        offset = self.size
+        self.append(data)
+        self.size += len(data)
+        return offset
+
+
+def _enc(obj, blob: _Blob):
     if isinstance(obj, (np.ndarray, np.generic)):   # first: np.float64 is a float, np.str_ a str
         a = np.asarray(obj)
         if a.dtype.hasobject:
             raise TypeError("object arrays are not stored")
         fortran = bool(a.flags.f_contiguous and not a.flags.c_contiguous)  # as np.save keeps it
         data = (a.T if fortran else a).tobytes()
-        offset = sum(len(b) for b in blob)
-        blob.append(data)
+        offset = blob.add(data)
         return {"a" if isinstance(obj, np.ndarray) else "s":
                 [a.dtype.str, list(a.shape), offset, len(data), fortran]}
     if obj is None or isinstance(obj, (bool, str)):
@@ -142,7 +155,7 @@ def encode(obj) -> bytes:
     """``obj`` (None, bool, int, float, str, NumPy arrays and scalars, lists, tuples, dicts and
     dataclasses of this package, nested) as bytes, without pickle: the length of a JSON tree
     (8 bytes, big-endian), the tree, then the arrays' raw bytes, which the tree locates."""
-    blob: list = []
+    blob = _Blob()
     tree = json.dumps(_enc(obj, blob), separators=(",", ":")).encode()
     return b"".join([_HEAD.pack(len(tree)), tree, *blob])
 

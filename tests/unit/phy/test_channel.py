@@ -233,3 +233,57 @@ def test_apply_frequency_on_occupied_res_equals_the_full_response(tags):
     want = np.einsum("l,latk,ltk->atk", amps, h, grids.reshape(4, t.size, -1)).reshape(3, 2, 14, -1)
     got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+
+
+def test_group_index_selects_the_rows_times_cols_block():
+    """group_index: the same [R, C] entries as np.ix_(rows, cols) (second method; exact), a
+    slice for a comb's evenly spaced columns, two index arrays otherwise."""
+    from veriloc_rt.phy.channel import group_index
+
+    m = np.arange(14 * 60).reshape(14, 60)
+    rows = np.array([0, 3, 4, 11])
+    for cols, sliced in ((np.arange(2, 60, 6), True), (np.array([7]), True),
+                         (np.array([1, 2, 5, 9]), False)):
+        ix = group_index(rows, cols)
+        assert isinstance(ix[1], slice) == sliced
+        np.testing.assert_array_equal(m[ix], m[np.ix_(rows, cols)])
+
+
+def _scatter_add_reference(links, grids, amps, ofdm, slots, t0):
+    """apply_frequency as it was written before: every group of every link added into the grid
+    with two index arrays (out[ix] += a H X)."""
+    from veriloc_rt.phy.channel import occupancy_groups, subcarrier_frequencies, symbol_times
+
+    t = symbol_times(ofdm, slots, t0).ravel()
+    f = subcarrier_frequencies(ofdm)
+    out = np.zeros((links.num_ant, t.size, f.size), dtype=np.complex128)
+    for li, amp in enumerate(amps):
+        x = grids[li].reshape(t.size, f.size)
+        one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
+                    links.valid[li:li + 1])
+        for sym, sc in occupancy_groups(x != 0):
+            h = frequency_response(one, f[sc], t[sym], t0)[0]
+            out[:, sym[:, None], sc[None, :]] += amp * h * x[sym[:, None], sc[None, :]][None]
+    return out.reshape(links.num_ant, len(slots), 14, f.size)
+
+
+def test_apply_frequency_equals_the_scatter_add_bit_for_bit():
+    """apply_frequency writes a group into REs no link has touched yet (0 + v) and adds into
+    the others; against the plain scatter-add of every group (second method), bit for bit,
+    signed zeros included: links 0 and 1 send on the same REs (the add), link 2 on its own
+    (the write), link 3 with zero gain (0 * X = -0.0 on some REs, which 0 + v makes +0.0)."""
+    nr = NRConfig(slots_per_frame=2)
+    ofdm = OFDM(nr)
+    slots = range(2)
+    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), (1, 2, 3))
+    g = tx(0, slots)
+    grids = np.stack([g[0], g[0], g[1], -g[2]])
+    rng = np.random.default_rng(11)
+    gains = rng.standard_normal((4, 3, 2)) + 1j * rng.standard_normal((4, 3, 2))
+    gains[3] = 0.0
+    links = Links(1e-6 + rng.uniform(0, 2e-6, (4, 2)), gains, rng.uniform(-150, 150, (4, 2)),
+                  np.ones((4, 2), dtype=bool))
+    amps = np.array([1.0, 0.5, 2.0, 0.3])
+    got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
+    want = _scatter_add_reference(links, grids, amps, ofdm, slots, 0.9e-6)
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))

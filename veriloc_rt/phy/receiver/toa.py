@@ -31,6 +31,7 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -176,6 +177,29 @@ class _Derotated:
     combined: np.ndarray
 
 
+#: per-thread work arrays of :func:`_workspace` (a chain may run in several threads of a Dask
+#: worker)
+_WORK = threading.local()
+
+
+def _workspace(name: str, shape: tuple, dtype) -> np.ndarray:
+    """A work array of ``shape`` and ``dtype`` kept from call to call (contents undefined).
+
+    The zero-padded delay profiles are megabytes (33 Doppler hypotheses x 5 antennas x 4096
+    lags); allocated afresh at every call (scipy's zero padding) they were page-faulted in
+    and returned each time. One array per name, grown as needed, viewed at the asked shape.
+    """
+    store = getattr(_WORK, "arrays", None)
+    if store is None:
+        store = _WORK.arrays = {}
+    dtype = np.dtype(dtype)
+    size = int(np.prod(shape))
+    a = store.get(name)
+    if a is None or a.dtype != dtype or a.size < size:
+        a = store[name] = np.empty(size, dtype=dtype)
+    return a[:size].reshape(shape)
+
+
 def spatial_dof(x: np.ndarray) -> float:
     """Effective chi-square degrees of freedom of sum_a |x_a|^2 for zero-mean samples x.
 
@@ -248,12 +272,14 @@ class ToAEstimator:
         """
         dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
         pos = idx - idx.min()
+        buf = _workspace("profile", g.shape[:-1] + (n_up,), dtype)   # zero-padded, then in place
         if pos[-1] == pos.size - 1 and np.all(np.diff(pos) == 1):
-            p = sfft.ifft(g.astype(dtype, copy=False), n=n_up, axis=-1, norm="forward")
+            buf[..., :pos.size] = g
+            buf[..., pos.size:] = 0
         else:
-            buf = np.zeros(g.shape[:-1] + (n_up,), dtype=dtype)
+            buf[...] = 0
             buf[..., pos] = g
-            p = sfft.ifft(buf, axis=-1, overwrite_x=True, norm="forward")
+        p = sfft.ifft(buf, axis=-1, overwrite_x=True, norm="forward")
         lo, hi = -int(lags[0]), int(lags[-1]) + 1
         if not (0 <= lo and hi <= n_up - lo and lags.size == lo + hi):   # not one wrapped run
             p = p[..., lags % n_up]
