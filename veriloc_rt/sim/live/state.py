@@ -379,6 +379,16 @@ class RunFolderState:
             out["process"] = {"returncode": code, "message": text}
         return out
 
+    def _uninformative(self) -> dict:
+        """``{scenario: uninformative_detectors}`` of a finished run's metrics.json ({} when it
+        has none)."""
+        try:
+            scen = json.loads((self.folder / "metrics.json").read_text())["scenarios"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return {}
+        return {k: v["uninformative_detectors"] for k, v in scen.items()
+                if isinstance(v, dict) and "uninformative_detectors" in v}
+
     def _single_state(self, scenario: str | None, start: int) -> dict:
         with self._lock:
             now = self.clock()
@@ -401,9 +411,13 @@ class RunFolderState:
                 rows_left += max((total or done) - done, 0)
                 eta = 0.0 if total is not None and done >= total else (
                     rows_left / rate if rate else None)
-                key = (tail.generation, done)
-                if self._metrics.get(name, (None,))[0] != key:   # only when rows were added
+                key = (tail.generation, done, status == "complete")
+                if self._metrics.get(name, (None,))[0] != key:   # rows added, or run done
                     self._metrics[name] = (key, scenario_metrics(tail.rows, name))
+                    if status == "complete":   # the ROC's flags, known once the run is done
+                        flags = self._uninformative().get(name)
+                        if flags is not None:
+                            self._metrics[name][1]["uninformative_detectors"] = flags
                 scen.append({"name": name, "done": done, "total": total, "eta_s": eta,
                              "generation": tail.generation, "metrics": self._metrics[name][1]})
             out = {

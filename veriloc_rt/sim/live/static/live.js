@@ -111,8 +111,11 @@ function renderShares(st) {
   const head = el("tr", {}, el("th", {text: "scenario"}), ...st.detectors.map(d => el("th", {text: d})));
   const rows = st.scenarios.map(sc => {
     const r = (sc.metrics && sc.metrics.correct_decision_rate) || {};
+    const uninf = (sc.metrics && sc.metrics.uninformative_detectors) || [];
     return el("tr", {}, el("td", {text: sc.name}),
-              ...st.detectors.map(d => el("td", {text: r[d] === undefined || r[d] === null ? "–" : r[d].toFixed(1)})));
+              ...st.detectors.map(d => el("td", uninf.includes(d)
+                ? {text: "uninf.", title: d + " accepts too few benign fixes: its rejections here are no detections"}
+                : {text: r[d] === undefined || r[d] === null ? "–" : r[d].toFixed(1)})));
   });
   t.replaceChildren(head, ...rows);
 }
