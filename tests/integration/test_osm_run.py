@@ -52,7 +52,8 @@ def test_run_on_an_imported_extract(tmp_path, monkeypatch):
                                         "diffraction": False}}}
     Path("c.json").write_text(json.dumps(cfg))
     assert main(["run", "c.json", "--out", "r"]) == 0
-    for f in ("scene/scene.xml", "scene/scene.json", "scene/streets.json", "metrics.json"):
+    for f in ("scene/scene.xml", "scene/osm/scene.xml", "scene/osm/scene.json",
+              "scene/osm/streets.json", "metrics.json"):
         assert (tmp_path / "r" / f).is_file(), f
     s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
     assert s["num_points"] == 5 and s["bs_to_ue"]["links_with_path_pct"] > 50

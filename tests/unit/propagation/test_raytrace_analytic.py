@@ -163,7 +163,7 @@ class DirectTracer:
     def __init__(self, tr, fid):
         self.tr, self.fid = tr, fid
 
-    def trace(self, src, dst, rays, progress=None):
+    def trace(self, src, dst, rays, progress=None, workers=1):
         from veriloc_rt.propagation.sionna_rt import RawPaths
 
         return RawPaths.concat([self.tr.trace(s[None], d[None], self.fid, rays)
