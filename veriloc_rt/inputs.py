@@ -17,14 +17,17 @@ with code 2. The checks happen before anything is read or computed:
 
 from __future__ import annotations
 
+import csv
+import io
 import json
+import math
 import os
 import stat
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from .errors import InputError
+from .errors import InputError, short_repr
 
 __all__ = ["MAX_PATH_CHARS", "MAX_NAME_BYTES", "MAX_JSON_BYTES", "check_path", "read_bytes",
            "read_text", "decode_text", "parse_json", "check_out_dir"]
@@ -199,3 +202,39 @@ def check_out_dir(path: Any, field: str) -> Path:
     os.close(fd)
     os.unlink(tmp)
     return p
+
+
+def numeric_csv(text: str, name: str, columns: tuple[list[str], ...],
+                expected: str) -> tuple[list[str], list[tuple[int, list[float]]]]:
+    """The rows of a CSV file with a header and finite numbers below it.
+
+    :param text: the file's text;  name: the file's name in messages
+    :param columns: the accepted headers (lower case, stripped)
+    :param expected: the headers as the message names them, e.g. ``"'t,x,y' or 't,x,y,z'"``
+    :returns: the header, and (line number, values) of every non-blank row
+    :raises InputError: ``name`` (no rows, another header) or ``name:line`` (another number of
+        columns, a value that is not a finite number)
+    """
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:   # a field over csv.field_size_limit(), a NUL byte
+        raise InputError(name, f"not a readable CSV file ({exc})") from None
+    if not rows:
+        raise InputError(name, f"empty file, expected a header {expected} and rows")
+    header = [h.strip().lower() for h in rows[0]]
+    if header not in columns:
+        raise InputError(name, f"header {short_repr(','.join(rows[0]))}, expected {expected}")
+    out = []
+    for i, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InputError(f"{name}:{i}", f"{len(row)} columns, expected {len(header)}")
+        try:
+            vals = [float(c) for c in row]
+        except ValueError:
+            raise InputError(f"{name}:{i}", f"non-numeric value in {short_repr(row)}") from None
+        if not all(math.isfinite(v) for v in vals):
+            raise InputError(f"{name}:{i}", f"non-finite value in {short_repr(row)}")
+        out.append((i, vals))
+    return header, out

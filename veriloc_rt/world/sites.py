@@ -9,15 +9,13 @@ building surface over that point, so it is above its roof and never inside a bui
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..inputs import read_text
+from ..inputs import numeric_csv, read_text
 from ..config.world import MIN_ANTENNA_HEIGHT_M
 from .scene.raster import rasterize
 
@@ -70,28 +68,11 @@ def load_sites(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     field = "topology.sites"
     name = str(path)
     text = read_text(path, field, "sites file", MAX_SITES_BYTES)
-    try:
-        rows = list(csv.reader(io.StringIO(text, newline="")))
-    except csv.Error as exc:
-        raise InputError(name, f"not a readable CSV file ({exc})") from None
-    if not rows:
-        raise InputError(name, "empty file, expected a header x,y,z[,azimuth_deg] and rows")
-    header = [h.strip().lower() for h in rows[0]]
-    if header[:3] != ["x", "y", "z"] or header[3:] not in ([], ["azimuth_deg"], ["azimuth"]):
-        raise InputError(name, f"header {','.join(rows[0])[:60]!r}, expected 'x,y,z' or "
-                         "'x,y,z,azimuth_deg'")
+    _, rows = numeric_csv(text, name, (["x", "y", "z"], ["x", "y", "z", "azimuth_deg"],
+                                       ["x", "y", "z", "azimuth"]),
+                          "'x,y,z' or 'x,y,z,azimuth_deg'")
     pos, az = [], []
-    for i, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise InputError(f"{name}:{i}", f"{len(row)} columns, expected {len(header)}")
-        try:
-            vals = [float(c) for c in row]
-        except ValueError:
-            raise InputError(f"{name}:{i}", f"non-numeric value in {','.join(row)[:60]!r}") from None
-        if not all(math.isfinite(v) for v in vals):
-            raise InputError(f"{name}:{i}", f"non-finite value in {','.join(row)[:60]!r}")
+    for i, vals in rows:
         if vals[2] <= MIN_ANTENNA_HEIGHT_M:
             raise InputError(f"{name}:{i}", f"z = {vals[2]:g} m, expected a BS height above "
                              f"{MIN_ANTENNA_HEIGHT_M:g} m (TR 38.901's h_E)")

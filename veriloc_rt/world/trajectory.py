@@ -6,8 +6,6 @@ length at each sample, so the adversary can follow *the same path* a number of p
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +15,7 @@ import numpy as np
 from ..config import TrajectoryConfig
 from ..config.world import MIN_ANTENNA_HEIGHT_M
 from ..errors import InputError, bad_value, short_repr
-from ..inputs import read_text
+from ..inputs import numeric_csv, read_text
 
 _DIRS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # E, N, W, S
 _TURN_SPEED = 4.0  # m/s through a corner (about 15 km/h)
@@ -146,12 +144,7 @@ def generate_street_trajectory(cfg: TrajectoryConfig, canyon, rng: np.random.Gen
     stop_idx[1:] = np.maximum(node_idx[1:] - int(round(_STOP_LINE / _DS)), 0)
     vmax[stop_idx[stops]] = 0.0
     # acceleration limits: forward then backward pass on v^2
-    v2 = vmax ** 2
-    for i in range(1, len(v2)):
-        v2[i] = min(v2[i], v2[i - 1] + 2 * cfg.accel_mps2 * _DS)
-    for i in range(len(v2) - 2, -1, -1):
-        v2[i] = min(v2[i], v2[i + 1] + 2 * cfg.accel_mps2 * _DS)
-    v = np.sqrt(v2)
+    v = _accel_limited(vmax, cfg.accel_mps2)
     vmid = np.maximum(0.5 * (v[1:] + v[:-1]), 1e-3)
     dt_steps = _DS / vmid
     # dwell times are added on arrival at a stop node
@@ -254,12 +247,7 @@ def generate_graph_trajectory(cfg: TrajectoryConfig, graph, rng: np.random.Gener
     stop_idx = np.minimum(np.round(stop_s / _DS).astype(int), len(s_grid) - 1)
     vmax[stop_idx[stops]] = 0.0
     vmax[0] = 0.0   # the drive starts from standstill
-    v2 = vmax ** 2
-    for i in range(1, len(v2)):
-        v2[i] = min(v2[i], v2[i - 1] + 2 * cfg.accel_mps2 * _DS)
-    for i in range(len(v2) - 2, -1, -1):
-        v2[i] = min(v2[i], v2[i + 1] + 2 * cfg.accel_mps2 * _DS)
-    v = np.sqrt(v2)
+    v = _accel_limited(vmax, cfg.accel_mps2)
     dt_steps = _DS / np.maximum(0.5 * (v[1:] + v[:-1]), 1e-3)
     arrive_dwell = np.zeros(len(s_grid))
     np.add.at(arrive_dwell, stop_idx[stops], dwell[stops])
@@ -290,6 +278,18 @@ def _turn_angle(a: np.ndarray, b: np.ndarray) -> float:
     return float(abs(math.atan2(a[0] * b[1] - a[1] * b[0], float(np.dot(a, b)))))
 
 
+def _accel_limited(vmax: np.ndarray, accel: float) -> np.ndarray:
+    """The fastest speed profile [n] m/s under the caps ``vmax`` [n] m/s (every _DS m) that
+    accelerates and brakes at most ``accel`` m/s^2: a forward, then a backward pass on v^2
+    (v^2 grows by at most 2 a ds per step)."""
+    v2 = vmax ** 2
+    for i in range(1, len(v2)):
+        v2[i] = min(v2[i], v2[i - 1] + 2 * accel * _DS)
+    for i in range(len(v2) - 2, -1, -1):
+        v2[i] = min(v2[i], v2[i + 1] + 2 * accel * _DS)
+    return np.sqrt(v2)
+
+
 def load_csv_trajectory(path: str | Path, cfg: TrajectoryConfig) -> Trajectory:
     """Read ``t,x,y[,z]`` (header row required; z defaults to ``ue_height_m``).
 
@@ -298,29 +298,10 @@ def load_csv_trajectory(path: str | Path, cfg: TrajectoryConfig) -> Trajectory:
     field = "trajectory.source"
     text = read_text(path, field, "trajectory file", MAX_CSV_BYTES)
     path = Path(path)
-    try:
-        rows = list(csv.reader(io.StringIO(text, newline="")))
-    except csv.Error as exc:  # a field over csv.field_size_limit(), a NUL byte
-        raise InputError(str(path), f"not a readable CSV file ({exc})") from None
-    if not rows:
-        raise InputError(str(path), "empty file, expected a header t,x,y[,z] and rows")
-    header = [h.strip().lower() for h in rows[0]]
-    if header[:3] != ["t", "x", "y"] or header[3:] not in ([], ["z"]):
-        raise InputError(str(path), f"header {short_repr(','.join(rows[0]))}, expected 't,x,y' or 't,x,y,z'")
-    data, rows_used = [], []   # the values and their line numbers
-    for i, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise InputError(f"{path}:{i}", f"{len(row)} columns, expected {len(header)}")
-        try:
-            vals = [float(c) for c in row]
-        except ValueError:
-            raise InputError(f"{path}:{i}", f"non-numeric value in {short_repr(row)}") from None
-        if not all(math.isfinite(v) for v in vals):
-            raise InputError(f"{path}:{i}", f"non-finite value in {short_repr(row)}")
-        data.append(vals)
-        rows_used.append(i)
+    _, rows = numeric_csv(text, str(path), (["t", "x", "y"], ["t", "x", "y", "z"]),
+                          "'t,x,y' or 't,x,y,z'")
+    rows_used = [i for i, _ in rows]   # the values' line numbers
+    data = [vals for _, vals in rows]
     if len(data) < 2:
         raise InputError(str(path), f"{len(data)} data rows, expected at least 2")
     arr = np.array(data)[: cfg.num_points]
