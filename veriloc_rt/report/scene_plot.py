@@ -27,6 +27,9 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
 
     fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
     scene = geometry.scene
+    bs, ue = geometry.bs_pos, geometry.ue.pos
+    pts = np.concatenate([bs[:, :2], ue[:, :2]])
+    lo, hi = pts.min(axis=0) - 40, pts.max(axis=0) + 40   # the view
 
     def rects(fp, **kw):
         patches = [Rectangle((f[0], f[1]), f[2] - f[0], f[3] - f[1]) for f in fp]
@@ -40,10 +43,11 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
         # their outlines, roofs fill the footprints); light: left out by the crop
         full = getattr(geometry, "full_mesh", None)
         for s, colour in (((full or scene), "0.88"), (scene, "0.45")):
-            tri = s.building_triangles
+            tri = s.building_triangles[:, :, :2]
+            # only what the view shows: a city's mesh holds tens of thousands of triangles
+            seen = np.all((tri.max(axis=1) >= lo) & (tri.min(axis=1) <= hi), axis=1)
             ax.add_collection(matplotlib.collections.PolyCollection(
-                tri[:, :, :2], facecolor=colour, edgecolor=colour, linewidths=0.3))
-    ue = geometry.ue.pos
+                tri[seen], facecolor=colour, edgecolor=colour, linewidths=0.3, rasterized=True))
     seg = np.stack([ue[:-1, :2], ue[1:, :2]], axis=1)
     lc = LineCollection(seg, cmap="viridis", linewidths=2.0)
     lc.set_array(geometry.ue.t[:-1])
@@ -59,7 +63,6 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
         for c in layout.cell_centre(cells):
             ax.plot(c[0] + layout.side * np.cos(ang), c[1] + layout.side * np.sin(ang), "--",
                     color="tab:red", lw=0.8, alpha=0.6)
-    bs = geometry.bs_pos
     ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", ms=11, mec="k", label="serving BSs")
     for i, p in enumerate(bs):
         ax.annotate(f"BS{i} ({p[2]:.0f} m)", p[:2], textcoords="offset points", xytext=(6, 6),
@@ -72,15 +75,15 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
     if estimated_xy is not None:
         ax.plot(estimated_xy[:, 0], estimated_xy[:, 1], "x", color="tab:purple", ms=3,
                 label="estimated")
-    pts = np.concatenate([bs[:, :2], ue[:, :2]])
-    lo, hi = pts.min(axis=0) - 40, pts.max(axis=0) + 40
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
     ax.set_xlabel("x (east) [m]")
     ax.set_ylabel("y (north) [m]")
     ax.set_title(title or "Scene top view")
-    ax.legend(loc="best", fontsize=8, framealpha=0.9)
+    # below the axes: covers nothing, and needs no search over the drawn buildings (which "best"
+    # makes, slow on a city's mesh)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8, frameon=False)
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
