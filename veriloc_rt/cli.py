@@ -457,6 +457,13 @@ def argparse_field(message: str) -> tuple[str, str]:
     return "arguments", message
 
 
+def _browser_flags(p: argparse.ArgumentParser, port_help: str,
+                   browser_help: str = "do not open a browser") -> None:
+    """``--port`` and ``--no-browser`` of the commands that serve a page (run --live, view, edit)."""
+    p.add_argument("--port", type=int, help=port_help)
+    p.add_argument("--no-browser", action="store_true", help=browser_help)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
     p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
@@ -479,15 +486,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "(replacing the run files there)")
     r.add_argument("--live", action="store_true", help="serve the live view of --out on "
                    "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
-    r.add_argument("--port", type=int, help="--live: port (default 8765, or a free one)")
-    r.add_argument("--no-browser", action="store_true", help="--live: do not open a browser")
+    _browser_flags(r, "--live: port (default 8765, or a free one)",
+                   "--live: do not open a browser")
     r.set_defaults(func=cmd_run)
     w = sub.add_parser("view", help="serve the live view of a running or finished run folder "
                        "on 127.0.0.1")
     w.add_argument("dir", help="the run's --out folder")
-    w.add_argument("--port", type=int, help="port (default 8765, or a free one when taken; "
-                   "0: any free one)")
-    w.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    _browser_flags(w, "port (default 8765, or a free one when taken; 0: any free one)")
     w.add_argument("--watch-stdin", action="store_true", help=argparse.SUPPRESS)
     w.set_defaults(func=cmd_view)
     e = sub.add_parser("edit", help="edit a config in the browser (fields, ranges, defaults), "
@@ -497,8 +502,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "beside --out")
     e.add_argument("--out", default="results", help="output folder of the run it starts "
                    "(default: results; editable in the page)")
-    e.add_argument("--port", type=int, help="port (default 8765, or a free one)")
-    e.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    _browser_flags(e, "port (default 8765, or a free one)")
     e.set_defaults(func=cmd_edit)
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")
