@@ -19,7 +19,7 @@ from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.phy.transmitter import PRSTransmitter
 from veriloc_rt.phy.receiver.sync import (frequency_cross_spectra, noise_variance,
                                           time_cross_spectra)
-from veriloc_rt.phy.receiver.toa import ToAEstimator
+from veriloc_rt.phy.receiver.toa import ToAEstimator, zoom_plan
 from veriloc_rt.config.security import SecurityConfig
 
 GUARD = 0.25e-6
@@ -278,3 +278,33 @@ def test_profile_power_does_not_depend_on_the_previous_call():
     dft = np.exp(2j * np.pi * np.outer(lags, idx) / n)
     want = np.sum(np.abs(np.einsum("lk,vak->val", dft, g)) ** 2, axis=1)
     np.testing.assert_allclose(again, want, rtol=1e-9, atol=1e-9 * want.max())
+
+
+#: single-precision transforms: float32 rounding over a few thousand terms, relative to the peak
+C64_RTOL = 1e-5
+
+
+@pytest.mark.parametrize("contiguous", [True, False])
+def test_profile_power_on_the_chain_grid_equals_the_explicit_dft(contiguous):
+    """On the chain's grid (624 bins zero-padded to 4096, the lags -16..737 of the search window)
+    lag_power evaluates the window alone by the chirp-z transform; against the DFT written out
+    (second method), windowed or not, in double precision (tolerance as above) and in single
+    precision (C64_RTOL of the peak), twice (the work arrays are reused)."""
+    rng = np.random.default_rng(11)
+    k_n, n = 624, 4096
+    pos = np.arange(k_n) if contiguous else np.sort(rng.choice(700, k_n, replace=False))
+    idx = pos - 312
+    lags = np.arange(-16, 738)
+    assert zoom_plan(pos, -16, lags.size, n, np.dtype(np.complex128)) is not None
+    g = rng.standard_normal((3, 5, k_n)) + 1j * rng.standard_normal((3, 5, k_n))
+    win = np.cos(np.pi * np.linspace(-0.49, 0.49, k_n)) ** 2
+    dft = np.exp(2j * np.pi * np.outer(lags, pos) / n)                       # [L, K]
+    for w in (None, win):
+        gw = g if w is None else g * w
+        want = np.sum(np.abs(np.einsum("lk,vak->val", dft, gw)) ** 2, axis=1)
+        for _ in range(2):
+            got = ToAEstimator.lag_power(g, idx, lags, n, w)
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * want.max())
+            got32 = ToAEstimator.lag_power(g.astype(np.complex64), idx, lags, n,
+                                           None if w is None else w.astype(np.float32))
+            np.testing.assert_allclose(got32, want, rtol=0, atol=C64_RTOL * want.max())
