@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from ..channel import occupancy_groups, subcarrier_frequencies, symbol_layout
+from ..channel import as_slice, occupancy_groups, subcarrier_frequencies, symbol_layout
 from ..nr.ofdm import OFDM
 from .toa import CrossSpectra, spatial_dof
 
@@ -41,6 +41,32 @@ def _block_times(ofdm: OFDM, slots, s_idx: np.ndarray, l_idx: np.ndarray) -> np.
     return (starts[s_idx, l_idx] + cps[s_idx, l_idx] + (ofdm.fft_size - 1) / 2.0) / ofdm.sample_rate_hz
 
 
+#: (s_idx, l_idx, groups) by the replica's RE pattern: a chain's replicas occupy the same REs
+#: at every point
+_LAYOUTS: dict = {}
+
+
+def _replica_layout(replica: np.ndarray) -> tuple:
+    """The replica's blocks and their groups: ``(s_idx, l_idx, groups)``, ``s_idx, l_idx`` as
+    :func:`block_index`, ``groups`` None (every block occupies every bin) or per group of
+    :func:`~veriloc_rt.phy.channel.occupancy_groups` ``(blocks, bins, flat block index into
+    (slot, symbol) row-major, bins as a slice or index array)`` (kept per pattern)."""
+    occ = replica != 0
+    key = occ.tobytes() + str(occ.shape).encode()
+    out = _LAYOUTS.get(key)
+    if out is None:
+        used = np.any(occ, axis=-1)
+        s_idx, l_idx = np.nonzero(used)
+        groups = occupancy_groups(occ[s_idx, l_idx])
+        if groups is not None:
+            flat = s_idx * replica.shape[1] + l_idx
+            groups = [(b, k, flat[b], as_slice(k)) for b, k in groups]
+        if len(_LAYOUTS) > 64:
+            _LAYOUTS.clear()
+        out = _LAYOUTS[key] = (s_idx, l_idx, groups)
+    return out
+
+
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots) -> CrossSpectra:
     """Per-RE cross-spectra of a received grid with a replica grid, computed on the replica's
     REs only when it leaves some empty (``CrossSpectra.parts``; a comb-6 PRS: 1/6 of them).
@@ -52,15 +78,17 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
     if rx_grid.ndim != 4 or rx_grid.shape[1:] != replica.shape:
         raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
                          "must be [A, S, 14, K] and [S, 14, K]")
-    s_idx, l_idx = block_index(replica)
+    s_idx, l_idx, groups = _replica_layout(replica)
     rep = replica[s_idx, l_idx]                                   # [B, K]
-    groups = occupancy_groups(rep != 0)
     if groups is None:
         parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
     else:   # only the replica's REs: S = Y X* is zero elsewhere
         spectra = None
-        parts = tuple((b, k, rx_grid[:, s_idx[b][:, None], l_idx[b][:, None], k[None, :]]
-                       * np.conj(rep[b[:, None], k[None, :]])[None]) for b, k in groups)
+        a, s_n, l_n, k_n = rx_grid.shape
+        flat = rx_grid.reshape(a, s_n * l_n, k_n)                 # (slot, symbol) -> one axis
+        parts = tuple((b, k, (flat[:, fb, ix] * np.conj(rep[b, ix])[None]) if isinstance(ix, slice)
+                       else flat[:, fb[:, None], ix[None, :]] * np.conj(rep[b[:, None], ix[None, :]])[None])
+                      for b, k, fb, ix in groups)
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,
                         block_times=_block_times(ofdm, slots, s_idx, l_idx),

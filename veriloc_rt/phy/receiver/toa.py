@@ -40,7 +40,7 @@ import scipy.fft as sfft
 from scipy.special import chdtri   # chi-square inverse survival function (a ufunc: 40x
                                    # faster than scipy.stats.chi2.isf, same values)
 
-from ..channel import occupancy_groups
+from ..channel import as_slice, occupancy_groups
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
@@ -113,7 +113,7 @@ class CrossSpectra:
     def bin_index(self) -> tuple:
         """Per group of :attr:`groups`, its bins as an index: a slice when they are evenly
         spaced (a comb), else the index array (a slice scatters several times faster)."""
-        return tuple(_as_slice(bins) for _, bins, _ in self.groups)
+        return tuple(as_slice(bins) for _, bins, _ in self.groups)
 
     def combine(self, weights: np.ndarray) -> np.ndarray:
         """sum_b w_b S_abk: [B] -> [A, K] complex128."""
@@ -235,16 +235,6 @@ def _parabola(ym: float, y0: float, yp: float) -> float:
     if den >= 0 or not np.isfinite(den):
         return 0.0
     return float(np.clip(0.5 * (ym - yp) / den, -1.0, 1.0))
-
-
-def _as_slice(idx: np.ndarray):
-    """``idx`` (increasing int64) as a slice when evenly spaced, else ``idx`` itself."""
-    if idx.size == 1:
-        return slice(int(idx[0]), int(idx[0]) + 1)
-    step = int(idx[1] - idx[0])
-    if step > 0 and np.all(np.diff(idx) == step):
-        return slice(int(idx[0]), int(idx[-1]) + 1, step)
-    return idx
 
 
 #: the Doppler scan's rotations by (hypotheses, block times): one chain's blocks and
