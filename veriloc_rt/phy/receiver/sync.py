@@ -49,8 +49,8 @@ _LAYOUTS: dict = {}
 def _replica_layout(replica: np.ndarray) -> tuple:
     """The replica's blocks and their groups: ``(s_idx, l_idx, groups)``, ``s_idx, l_idx`` as
     :func:`block_index`, ``groups`` None (every block occupies every bin) or per group of
-    :func:`~veriloc_rt.phy.channel.occupancy_groups` ``(blocks, bins, flat block index into
-    (slot, symbol) row-major, bins as a slice or index array)`` (kept per pattern)."""
+    :func:`~veriloc_rt.phy.channel.occupancy_groups` ``(blocks, bins, the blocks' slots, their
+    symbols, the bins as a slice or index array)`` (kept per pattern)."""
     occ = replica != 0
     key = occ.tobytes() + str(occ.shape).encode()
     out = _LAYOUTS.get(key)
@@ -59,8 +59,7 @@ def _replica_layout(replica: np.ndarray) -> tuple:
         s_idx, l_idx = np.nonzero(used)
         groups = occupancy_groups(occ[s_idx, l_idx])
         if groups is not None:
-            flat = s_idx * replica.shape[1] + l_idx
-            groups = [(b, k, flat[b], as_slice(k)) for b, k in groups]
+            groups = [(b, k, s_idx[b], l_idx[b], as_slice(k)) for b, k in groups]
         if len(_LAYOUTS) > 64:
             _LAYOUTS.clear()
         out = _LAYOUTS[key] = (s_idx, l_idx, groups)
@@ -84,11 +83,11 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
         parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
     else:   # only the replica's REs: S = Y X* is zero elsewhere
         spectra = None
-        a, s_n, l_n, k_n = rx_grid.shape
-        flat = rx_grid.reshape(a, s_n * l_n, k_n)                 # (slot, symbol) -> one axis
-        parts = tuple((b, k, (flat[:, fb, ix] * np.conj(rep[b, ix])[None]) if isinstance(ix, slice)
-                       else flat[:, fb[:, None], ix[None, :]] * np.conj(rep[b[:, None], ix[None, :]])[None])
-                      for b, k, fb, ix in groups)
+        # (the grid may be a strided view: no reshape, which would copy it whole)
+        parts = tuple((b, k, (rx_grid[:, sb, lb, ix] * np.conj(rep[b, ix])[None])
+                       if isinstance(ix, slice) else
+                       rx_grid[:, sb[:, None], lb[:, None], ix[None, :]] * np.conj(rep[b[:, None], ix[None, :]])[None])
+                      for b, k, sb, lb, ix in groups)
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,
                         block_times=_block_times(ofdm, slots, s_idx, l_idx),
