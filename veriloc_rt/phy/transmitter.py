@@ -140,11 +140,17 @@ class PRSTransmitter:
 
         :return: x : [num_symbols * res_per_symbol] complex128
         """
+        return self.tag_symbols_of_slots(bs, frame, [slot])[0]
+
+    def tag_symbols_of_slots(self, bs: int, frame: int, slots: Sequence[int]) -> np.ndarray:
+        """:meth:`tag_symbols` of several slots: [len(slots), num_symbols * res_per_symbol]."""
         if self.modem is None:
             raise ValueError("tag_scheme is 'none'")
         setup = self.setups[bs]
-        msg = tag_message(self.security.tag_scheme, setup.bs_id, frame, slot, setup.prs)
-        return self.modem.modulate(make_tag(self.security.tag_scheme, self.keys[setup.bs_id], msg))
+        scheme, key = self.security.tag_scheme, self.keys[setup.bs_id]
+        return self.modem.modulate_many([make_tag(scheme, key, tag_message(scheme, setup.bs_id, frame, s,
+                                                                           setup.prs))
+                                         for s in slots])
 
     def __call__(self, frame: int, slots: Sequence[int] | None = None) -> np.ndarray:
         """Resource grids of frame ``frame`` (a 32-bit frame counter).
@@ -157,8 +163,9 @@ class PRSTransmitter:
             for bs in range(self.num_bs):
                 k = self.layout.tag_subcarriers(bs)
                 sym = self.layout.symbols[:, None]
-                for i, s in enumerate(slots):
-                    grids[bs, i, sym, k] = self.tag_symbols(bs, frame, s).reshape(k.shape)
+                x = self.tag_symbols_of_slots(bs, frame, slots)
+                for i in range(len(slots)):
+                    grids[bs, i, sym, k] = x[i].reshape(k.shape)
         log.debug("frame %d: %d BS x %d slots", frame, self.num_bs, len(slots))
         return grids
 

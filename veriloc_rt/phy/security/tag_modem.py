@@ -64,12 +64,21 @@ class TagModem:
 
     def modulate(self, tag: bytes) -> np.ndarray:
         """:return: x : [num_res] complex128, unit-energy QPSK on used REs, 0 on unused ones"""
-        bits = np.unpackbits(np.frombuffer(tag, dtype=np.uint8))
-        if bits.size != self.code.k:
-            raise ValueError(f"Argument `tag` must be {self.code.k // 8} bytes, not {len(tag)}")
-        sym = qpsk(self.code.encode(bits))
-        out = np.zeros(self.num_res, dtype=np.complex128)
-        out[:self.copy_index.size] = sym[self.copy_index]
+        return self.modulate_many([tag])[0]
+
+    def modulate_many(self, tags) -> np.ndarray:
+        """:meth:`modulate` of several tags at once (one encoding product for all).
+
+        :param tags: sequence of bytes
+        :return: x : [len(tags), num_res] complex128
+        """
+        for tag in tags:
+            if len(tag) * 8 != self.code.k:
+                raise ValueError(f"Argument `tag` must be {self.code.k // 8} bytes, not {len(tag)}")
+        bits = np.unpackbits(np.frombuffer(b"".join(tags), dtype=np.uint8)).reshape(len(tags), self.code.k)
+        sym = qpsk(self.code.encode(bits))                                    # [N, e / 2]
+        out = np.zeros((len(tags), self.num_res), dtype=np.complex128)
+        out[:, :self.copy_index.size] = sym[:, self.copy_index]
         return out
 
     def demodulate(self, y: np.ndarray, h: np.ndarray, noise_var: float | np.ndarray) -> tuple[bytes, bool]:
