@@ -286,9 +286,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
             touched[:] = True
             continue
         for sym, sc in groups:
-            h = frequency_response(one, f[sc], flat_t[sym], t0)[0]               # [A, Tg, Kg]
+            v = frequency_response(one, f[sc], flat_t[sym], t0)[0]               # [A, Tg, Kg]
             ix = group_index(sym, sc)
-            v = amp * h * x[ix][None]
+            v *= amp                  # a H X in place: the values of (amp * h) * x
+            v *= x[ix][None]
             if touched[ix].any():
                 out[:, ix[0], ix[1]] += v
             else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
