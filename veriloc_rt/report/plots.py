@@ -35,22 +35,54 @@ _DETECTOR_STYLE = {  # display label, colour (the paper's pgfplots colours)
     "Tracking": ("Tracking", (0.3, 0.3, 0.3))}
 _OUTCOME_COLOURS = {"success": (0.0, 0.6, 0.0), "large_error": (1.0, 0.3, 0.3),
                     "service_failure": (0.75, 0.75, 0.75)}
+#: fixed margins (left, right, bottom, top), inches, of the bar charts: the y tick labels and
+#: label, the scenario names (rotated 30 degrees under the outcome bars) and the legend row
+#: above the axes, all known in advance
+_BAR_MARGINS_IN = {"outcomes": (0.65, 0.1, 0.7, 0.35), "rates": (0.65, 0.1, 0.32, 0.32)}
+#: fixed margins of the trajectory map, inches: tick labels of up to five characters and the
+#: axis labels (the equal-aspect axes then shrink to fit, centred)
+_MAP_MARGINS_IN = (0.8, 0.15, 0.6, 0.15)
+
+
+#: height the figure's title (``suptitle``, 'large' font, at 98 % of the figure's height) takes
+#: above the margins, inches
+TITLE_IN = 0.3
+
+
+def fixed_margins(fig, margins_in: tuple[float, float, float, float], title: bool,
+                  wspace_in: float = 0.0) -> None:
+    """Place ``fig``'s subplot grid at fixed margins: ``(left, right, bottom, top)`` inches from
+    the figure's edges (``top`` under the title, :data:`TITLE_IN`, when there is one), the
+    columns ``wspace_in`` inches apart."""
+    w, h = fig.get_size_inches()
+    left, right, bottom, top = margins_in
+    top += TITLE_IN if title else 0.0
+    ncols = fig.axes[0].get_subplotspec().get_gridspec().ncols if fig.axes else 1
+    axes_w = (w - left - right - (ncols - 1) * wspace_in) / ncols
+    fig.subplots_adjust(left=left / w, right=1.0 - right / w, bottom=bottom / h, top=1.0 - top / h,
+                        wspace=wspace_in / axes_w)
 
 
 @contextmanager
 def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.0), ncols: int = 1,
-           layout: str | None = "constrained", **kw):
+           layout: str | None = "constrained", margins_in: tuple | None = None,
+           wspace_in: float = 0.0, **kw):
     """Yield ``(fig, axes)`` on the Agg backend; on a clean exit add ``title``, save, log.
 
-    The figure is closed in every case. ``layout`` and ``kw`` go to ``plt.subplots`` (a figure
-    whose labels are known in advance sets fixed margins instead: the constrained layout
-    measures every tick label, which costs as much as drawing the figure).
+    The figure is closed in every case. ``layout`` and ``kw`` go to ``plt.subplots``.
+    ``margins_in``: fixed margins instead of a layout engine (:func:`fixed_margins`), for the
+    figures whose labels are known in advance: a layout engine makes ``savefig`` draw the
+    figure twice, once to measure every label and once to render it.
     """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if margins_in is not None:
+        layout = None
     fig, axes = plt.subplots(nrows, ncols, figsize=figsize, dpi=110, layout=layout, **kw)
+    if margins_in is not None:
+        fixed_margins(fig, margins_in, bool(title), wspace_in)
     try:
         yield fig, axes
         if title:
@@ -141,7 +173,7 @@ def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
               "large_error": f"Large error / spoofing (> {threshold_m:g} m)",
               "service_failure": "Service failure"}
     path = Path(path)
-    with figure(path, title, figsize=(8.0, 5.0)) as (_, ax):
+    with figure(path, title, figsize=(8.0, 5.0), margins_in=_BAR_MARGINS_IN["outcomes"]) as (_, ax):
         ticks, ticklabels, start = [], [], 0.0
         for gi, (name, entries) in enumerate(groups):
             x = start + np.arange(len(entries), dtype=float)
@@ -178,7 +210,7 @@ def plot_detection_rates(metrics: dict, path: str | Path, title: str | None = No
                         f"not {type(reference).__name__}")
     width = 0.16
     path = Path(path)
-    with figure(path, title, figsize=(9.0, 4.5)) as (_, ax):
+    with figure(path, title, figsize=(9.0, 4.5), margins_in=_BAR_MARGINS_IN["rates"]) as (_, ax):
         x = np.arange(len(entries), dtype=float)
         offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
         xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
@@ -300,7 +332,7 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     has_fix = np.isfinite(est).all(axis=1)
     inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
     path = Path(path)
-    with figure(path, title, figsize=(8.0, 8.0)) as (_, ax):
+    with figure(path, title, figsize=(8.0, 8.0), margins_in=_MAP_MARGINS_IN) as (_, ax):
         ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
         for o in OUTCOMES[:2]:
             sel = outcome == o

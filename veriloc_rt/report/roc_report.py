@@ -35,6 +35,11 @@ LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
 
 #: false-alarm rate up to which roc.png's x axis is linear (logarithmic above)
 _LINEAR_FA = 0.01
+#: roc.png's fixed margins (left, right, bottom, top), inches: the tick labels, the axis labels
+#: and each panel's title, all known in advance
+_MARGINS_IN = (0.58, 0.1, 0.5, 0.32)
+#: gap between two panels, inches: the y tick labels and label of the right one
+_WSPACE_IN = 0.68
 
 
 def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
@@ -56,7 +61,7 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
     k = m["fusion"]["k"]
     path = Path(path)
     with figure(path, title, ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
-                squeeze=False) as (_, axes):
+                squeeze=False, margins_in=_MARGINS_IN, wspace_in=_WSPACE_IN) as (_, axes):
         for ax, s in zip(axes[0], attacks):
             for name in (*DETECTORS, *FUSED):
                 c = analysis.curves.get((name, s))
