@@ -44,6 +44,9 @@ _BAR_MARGINS_IN = {"outcomes": (0.65, 0.1, 0.7, 0.35), "rates": (0.65, 0.1, 0.32
 _MAP_MARGINS_IN = (0.8, 0.15, 0.6, 0.15)
 
 
+#: savefig options by file suffix: PNG at zlib level 1 (the same pixels; encoding takes
+#: 15-30 ms instead of 26-58 ms per run figure, files 10-40 % larger)
+_SAVE_KW = {".png": {"pil_kwargs": {"compress_level": 1}}}
 #: height the figure's title (``suptitle``, 'large' font, at 98 % of the figure's height) takes
 #: above the margins, inches
 TITLE_IN = 0.3
@@ -88,7 +91,7 @@ def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.
         if title:
             fig.suptitle(title)
         with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
-            fig.savefig(tmp)
+            fig.savefig(tmp, **_SAVE_KW.get(Path(path).suffix.lower(), {}))
         log.info("wrote %s", path)
     finally:
         plt.close(fig)

@@ -81,9 +81,12 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
             # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
             ax.set_xscale("symlog", linthresh=_LINEAR_FA, linscale=0.5)
             ax.set_xticks([0.0, 0.01, 0.1, 1.0], ["0", "0.01", "0.1", "1"])
-            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02), title=s,
+            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02),
                    xlabel="false alarm = 1 - benign acceptance",
                    ylabel="detection (attack rejected)")
+            # at its place (y = 1, above the axes): placed automatically, the title measures
+            # the axis' tick labels first, to clear any above the axes (there are none)
+            ax.set_title(s, y=1.0)
             ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
                       loc="lower right")
     return path
