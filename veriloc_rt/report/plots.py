@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import logging
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -275,34 +276,94 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
     x = idx.astype(float) + 1.0
     err = np.maximum(err.astype(float), 1e-2)  # log axis: a zero error sits at 1 cm
     path = Path(path)
-    with figure(path, title, nrows=6, figsize=(10.0, 9.0), sharex=True, layout=None,
-                height_ratios=[1] * 5 + [1.6]) as (fig, axes):
+    key = (bool(title), float(threshold_m))
+    with _TIME_SERIES_LOCK:
+        fig = _TIME_SERIES.get(key)
+        if fig is None:
+            fig = _TIME_SERIES[key] = _TimeSeriesFigure(bool(title), threshold_m)
+        try:
+            fig.draw(path, x, [d.astype(float) for d in dets], err, attack_window, title)
+        except BaseException:
+            _TIME_SERIES.pop(key).close()   # left half-updated: the next call builds anew
+            raise
+    log.info("wrote %s", path)
+    return path
+
+
+class _TimeSeriesFigure:
+    """:func:`plot_time_series`' figure, built once per process and layout (title or none,
+    threshold) and then updated for each scenario: its data, limits, attack window and title.
+
+    Building the six panels and their ticks was half of each figure's time; the updated figure
+    gives the pixels a new one gives (tests/unit/report/test_plots.py). A matplotlib ``Figure``
+    outside pyplot, so that no pyplot call elsewhere draws on it.
+    """
+
+    def __init__(self, titled: bool, threshold_m: float):
+        import matplotlib
+        matplotlib.use("Agg")
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        self.fig = Figure(figsize=(10.0, 9.0), dpi=110)
+        FigureCanvasAgg(self.fig)
+        self.axes = self.fig.subplots(6, 1, sharex=True, height_ratios=[1] * 5 + [1.6])
         # fixed margins: the labels are the same on every run ("Invalid", "error [m]", ...)
-        fig.subplots_adjust(left=0.09, right=0.985, bottom=0.06,
-                            top=0.95 if title else 0.985, hspace=0.12)
-        for ax, det, y in zip(axes, DETECTORS, dets):
+        self.fig.subplots_adjust(left=0.09, right=0.985, bottom=0.06,
+                                 top=0.95 if titled else 0.985, hspace=0.12)
+        self.steps = []
+        for ax, det in zip(self.axes, DETECTORS):
             label, colour = _DETECTOR_STYLE[det]
-            ax.step(x, y.astype(float), where="post", color=colour, lw=1.8)
+            self.steps.append(ax.step([], [], where="post", color=colour, lw=1.8)[0])
             ax.set_ylim(-0.2, 1.2)
             ax.set_yticks([0, 1], ["Invalid", "Valid"])
             ax.set_ylabel(label)
-        ax = axes[-1]
-        ax.plot(x, err, ".-", color="k", ms=2, lw=0.6, label="position error")
+        ax = self.axes[-1]
+        self.error = ax.plot([], [], ".-", color="k", ms=2, lw=0.6, label="position error")[0]
+        self.threshold_m = threshold_m
         ax.axhline(threshold_m, color="tab:red", ls="--", lw=1.0, label=f"{threshold_m:g} m")
         ax.set_yscale("log")
         _plain_log_labels(ax.yaxis)
-        finite = err[np.isfinite(err)]
-        ax.set_ylim(min(finite.min(initial=threshold_m), threshold_m) / 2.0,
-                    max(finite.max(initial=threshold_m), threshold_m) * 2.0)
         ax.set_ylabel("error [m]")
         ax.set_xlabel("Trajectory point")
         ax.legend(loc="upper right", fontsize=7)
-        ax.set_xlim(0.0, max(x.max(initial=1.0), 1.0))
+        self.spans: list = []
+
+    def draw(self, path: Path, x: np.ndarray, dets: list, err: np.ndarray,
+             attack_window: tuple[int, int] | None, title: str | None) -> None:
+        """Show one scenario and save the figure to ``path``."""
+        for line, y in zip(self.steps, dets):
+            line.set_data(x, y)
+        self.error.set_data(x, err)
+        t = self.threshold_m
+        finite = err[np.isfinite(err)]
+        self.axes[-1].set_ylim(min(finite.min(initial=t), t) / 2.0, max(finite.max(initial=t), t) * 2.0)
+        self.axes[-1].set_xlim(0.0, max(x.max(initial=1.0), 1.0))
+        while self.spans:
+            self.spans.pop().remove()
         if attack_window is not None:
-            for a in axes:
-                a.axvspan(attack_window[0] + 0.5, attack_window[1] + 0.5, color="red",
-                          alpha=0.15, lw=0)
-    return path
+            self.spans = [a.axvspan(attack_window[0] + 0.5, attack_window[1] + 0.5, color="red",
+                                    alpha=0.15, lw=0) for a in self.axes]
+        if title:
+            self.fig.suptitle(title)
+        with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
+            self.fig.savefig(tmp, **_SAVE_KW.get(path.suffix.lower(), {}))
+
+    def close(self) -> None:
+        self.fig.clear()
+
+
+#: the time-series figures built so far, by (titled, threshold), and their lock (one figure
+#: is drawn at a time)
+_TIME_SERIES: dict[tuple, _TimeSeriesFigure] = {}
+_TIME_SERIES_LOCK = threading.Lock()
+
+
+def clear_figure_cache() -> None:
+    """Forget the figures kept for reuse (:class:`_TimeSeriesFigure`): the next is built anew."""
+    with _TIME_SERIES_LOCK:
+        while _TIME_SERIES:
+            _TIME_SERIES.popitem()[1].close()
 
 
 def _plain_log_labels(axis) -> None:

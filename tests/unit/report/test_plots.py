@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from veriloc_rt.errors import InputError
-from veriloc_rt.report.plots import (COLUMNS, DETECTORS, plot_detection_rates, plot_outcomes,
-                                     plot_time_series, plot_trajectory_map, read_results_csv)
+from veriloc_rt.report.plots import (COLUMNS, DETECTORS, clear_figure_cache, plot_detection_rates,
+                                     plot_outcomes, plot_time_series, plot_trajectory_map,
+                                     read_results_csv)
 
 # A PNG with axes, bars and text is tens of kB; a blank or truncated file is far below this.
 MIN_PNG_BYTES = 5_000
@@ -104,6 +105,31 @@ def test_time_series_png(rows, tmp_path):
 def test_time_series_all_nan_error_and_no_window(rows, tmp_path):
     rows["error_m"] = np.full(NUM_POINTS, np.nan)
     assert_png(plot_time_series(rows, tmp_path / "ts.png", None))
+
+
+def pixels(path):
+    from PIL import Image
+
+    return np.asarray(Image.open(path))
+
+
+def test_time_series_reused_figure_gives_a_new_figures_pixels(rows, rng, tmp_path):
+    """The time-series figure is built once and updated per scenario; each update must give
+    exactly the pixels a figure built for that scenario alone gives (the oracle: the cache
+    cleared before each). Scenarios differ in data, length, window (or none) and title."""
+    other = {k: (v[:25] if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    other["error_m"] = rng.uniform(20.0, 30.0, 25)      # about one decade: minor labels too
+    for d in DETECTORS:
+        other[d] = rng.integers(0, 2, 25).astype(float)
+    cases = [(rows, WINDOW, "fbs"), (other, None, "none"), (rows, (0, 5), "jamming")]
+    clear_figure_cache()
+    for k, (r, window, title) in enumerate(cases):      # one figure, updated
+        plot_time_series(r, tmp_path / f"reused{k}.png", window, title=title)
+    for k, (r, window, title) in enumerate(cases):      # a new figure each
+        clear_figure_cache()
+        plot_time_series(r, tmp_path / f"new{k}.png", window, title=title)
+    for k in range(len(cases)):
+        assert np.array_equal(pixels(tmp_path / f"reused{k}.png"), pixels(tmp_path / f"new{k}.png")), k
 
 
 def test_time_series_rejects_bad_window_and_missing_column(rows, tmp_path):
