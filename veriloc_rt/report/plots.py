@@ -73,18 +73,22 @@ def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.
            wspace_in: float = 0.0, **kw):
     """Yield ``(fig, axes)`` on the Agg backend; on a clean exit add ``title``, save, log.
 
-    The figure is closed in every case. ``layout`` and ``kw`` go to ``plt.subplots``.
+    The figure is closed in every case. ``layout`` and ``kw`` go to ``Figure.subplots``: a
+    matplotlib ``Figure`` outside pyplot (no pyplot state, and no pyplot import).
     ``margins_in``: fixed margins instead of a layout engine (:func:`fixed_margins`), for the
     figures whose labels are known in advance: a layout engine makes ``savefig`` draw the
     figure twice, once to measure every label and once to render it.
     """
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     if margins_in is not None:
         layout = None
-    fig, axes = plt.subplots(nrows, ncols, figsize=figsize, dpi=110, layout=layout, **kw)
+    fig = Figure(figsize=figsize, dpi=110, layout=layout)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, **kw)
     if margins_in is not None:
         fixed_margins(fig, margins_in, bool(title), wspace_in)
     try:
@@ -95,7 +99,7 @@ def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.
             fig.savefig(tmp, **_SAVE_KW.get(Path(path).suffix.lower(), {}))
         log.info("wrote %s", path)
     finally:
-        plt.close(fig)
+        fig.clear()
 
 
 def _scenarios(metrics: dict, key: str) -> list[tuple[str, dict]]:
