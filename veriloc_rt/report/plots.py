@@ -280,16 +280,9 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
     x = idx.astype(float) + 1.0
     err = np.maximum(err.astype(float), 1e-2)  # log axis: a zero error sits at 1 cm
     path = Path(path)
-    key = (bool(title), float(threshold_m))
-    with _TIME_SERIES_LOCK:
-        fig = _TIME_SERIES.get(key)
-        if fig is None:
-            fig = _TIME_SERIES[key] = _TimeSeriesFigure(bool(title), threshold_m)
-        try:
-            fig.draw(path, x, [d.astype(float) for d in dets], err, attack_window, title)
-        except BaseException:
-            _TIME_SERIES.pop(key).close()   # left half-updated: the next call builds anew
-            raise
+    with _kept_figure(("time series", bool(title), float(threshold_m)),
+                      lambda: _TimeSeriesFigure(bool(title), threshold_m)) as ts:
+        ts.draw(path, x, [d.astype(float) for d in dets], err, attack_window, title)
     log.info("wrote %s", path)
     return path
 
@@ -299,8 +292,8 @@ class _TimeSeriesFigure:
     threshold) and then updated for each scenario: its data, limits, attack window and title.
 
     Building the six panels and their ticks was half of each figure's time; the updated figure
-    gives the pixels a new one gives (tests/unit/report/test_plots.py). A matplotlib ``Figure``
-    outside pyplot, so that no pyplot call elsewhere draws on it.
+    gives the pixels a new one gives (tests/unit/report/test_plots.py). Kept by
+    :func:`_kept_figure`, a matplotlib ``Figure`` outside pyplot.
     """
 
     def __init__(self, titled: bool, threshold_m: float):
@@ -357,17 +350,65 @@ class _TimeSeriesFigure:
         self.fig.clear()
 
 
-#: the time-series figures built so far, by (titled, threshold), and their lock (one figure
-#: is drawn at a time)
-_TIME_SERIES: dict[tuple, _TimeSeriesFigure] = {}
-_TIME_SERIES_LOCK = threading.Lock()
+class _MapFigure:
+    """:func:`plot_trajectory_map`'s figure and axes, kept like :class:`_TimeSeriesFigure`:
+    each map removes the previous one's lines and legend and draws its own on the same axes,
+    whose ticks are then made once."""
+
+    def __init__(self, titled: bool):
+        import matplotlib
+        matplotlib.use("Agg")
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        self.fig = Figure(figsize=(8.0, 8.0), dpi=110)
+        FigureCanvasAgg(self.fig)
+        self.ax = self.fig.subplots()
+        fixed_margins(self.fig, _MAP_MARGINS_IN, titled)
+
+    def clean_axes(self):
+        """The axes without the previous map's lines and legend."""
+        for line in list(self.ax.lines):
+            line.remove()
+        if self.ax.get_legend() is not None:
+            self.ax.get_legend().remove()
+        return self.ax
+
+    def save(self, path: Path, title: str | None) -> None:
+        if title:
+            self.fig.suptitle(title)
+        with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
+            self.fig.savefig(tmp, **_SAVE_KW.get(path.suffix.lower(), {}))
+
+    def close(self) -> None:
+        self.fig.clear()
+
+
+#: the figures kept for reuse, by kind and layout, and their lock (one is drawn at a time)
+_KEPT: dict[tuple, object] = {}
+_KEPT_LOCK = threading.Lock()
+
+
+@contextmanager
+def _kept_figure(key: tuple, build):
+    """The kept figure ``key`` (``build()`` makes it the first time), held under the lock; one
+    left half-updated by an exception is dropped, so that the next call builds anew."""
+    with _KEPT_LOCK:
+        fig = _KEPT.get(key)
+        if fig is None:
+            fig = _KEPT[key] = build()
+        try:
+            yield fig
+        except BaseException:
+            _KEPT.pop(key).close()
+            raise
 
 
 def clear_figure_cache() -> None:
-    """Forget the figures kept for reuse (:class:`_TimeSeriesFigure`): the next is built anew."""
-    with _TIME_SERIES_LOCK:
-        while _TIME_SERIES:
-            _TIME_SERIES.popitem()[1].close()
+    """Forget the figures kept for reuse (time series, maps): the next ones are built anew."""
+    with _KEPT_LOCK:
+        while _KEPT:
+            _KEPT.popitem()[1].close()
 
 
 def _plain_log_labels(axis) -> None:
@@ -416,7 +457,8 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     has_fix = np.isfinite(est).all(axis=1)
     inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
     path = Path(path)
-    with figure(path, title, figsize=(8.0, 8.0), margins_in=_MAP_MARGINS_IN) as (_, ax):
+    with _kept_figure(("map", bool(title)), lambda: _MapFigure(bool(title))) as kept:
+        ax = kept.clean_axes()
         ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
         for o in OUTCOMES[:2]:
             sel = outcome == o
@@ -438,6 +480,8 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
         ax.set_xlabel("x (east) [m]")
         ax.set_ylabel("y (north) [m]")
         ax.legend(loc="best", fontsize=8, framealpha=0.9)
+        kept.save(path, title)
+    log.info("wrote %s", path)
     return path
 
 

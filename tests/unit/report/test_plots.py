@@ -132,6 +132,25 @@ def test_time_series_reused_figure_gives_a_new_figures_pixels(rows, rng, tmp_pat
         assert np.array_equal(pixels(tmp_path / f"reused{k}.png"), pixels(tmp_path / f"new{k}.png")), k
 
 
+def test_trajectory_map_reused_figure_gives_a_new_figures_pixels(rows, tmp_path):
+    """The map's axes are kept and redrawn per scenario; each map must give the pixels of a
+    figure built for it alone. Maps with an estimate beyond the view and an adversary, without
+    fixes, and on another (smaller) area without adversary."""
+    no_fix = dict(rows, x_est=np.full(NUM_POINTS, np.nan), y_est=np.full(NUM_POINTS, np.nan))
+    small = {k: (v[:12] if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    small["x_est"] = small["x_true"] + 3.0
+    adversary = np.column_stack([np.linspace(-50, 50, NUM_POINTS), np.zeros(NUM_POINTS)])
+    cases = [(rows, adversary, "fbs"), (no_fix, None, "jamming"), (small, None, "none")]
+    clear_figure_cache()
+    for k, (r, adv, title) in enumerate(cases):
+        plot_trajectory_map(r, BS_POS, tmp_path / f"reused{k}.png", adversary_xy=adv, title=title)
+    for k, (r, adv, title) in enumerate(cases):
+        clear_figure_cache()
+        plot_trajectory_map(r, BS_POS, tmp_path / f"new{k}.png", adversary_xy=adv, title=title)
+    for k in range(len(cases)):
+        assert np.array_equal(pixels(tmp_path / f"reused{k}.png"), pixels(tmp_path / f"new{k}.png")), k
+
+
 def test_time_series_rejects_bad_window_and_missing_column(rows, tmp_path):
     with pytest.raises(InputError, match="attack_window"):
         plot_time_series(rows, tmp_path / "ts.png", (30, 10))
