@@ -13,6 +13,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
+import gc
 import json
 import logging
 import sys
@@ -119,6 +120,8 @@ def cmd_run(args) -> int:
 
 def _run(cfg, out: Path, args) -> int:
     from .sim.engine import run
+
+    _freeze_heap(args)   # the modules just imported live to the end
 
     workers = (1 if args.scheduler is not None else args.workers if args.workers is not None
                else min(2, os.cpu_count() or 1))
@@ -559,8 +562,26 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _freeze_heap(args) -> None:
+    """Exempt every object alive now from the cyclic garbage collector (``gc.freeze``), when
+    this command is the whole process (``main()`` without ``argv``): what a command has
+    imported and built lives until the process ends, so scanning it again in every full
+    collection, and once more while the interpreter shuts down, frees nothing. Objects are
+    still freed by reference counting; only garbage cycles among the frozen ones stay until
+    the process exits. Not for a caller that runs commands in-process (``main(argv)``)."""
+    if getattr(args, "whole_process", False):
+        gc.freeze()
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    args.whole_process = argv is None
+    code = _main(args)
+    _freeze_heap(args)   # the interpreter's shutdown then skips the collection of the heap
+    return code
+
+
+def _main(args) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
     try:

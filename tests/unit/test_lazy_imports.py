@@ -16,12 +16,14 @@ import numpy as np
 from scipy.special import chdtri
 
 ROOT = Path(__file__).resolve().parents[2]
-#: loaded by the chain's estimators and decoder only
-LAZY = ("scipy.stats", "scipy.signal", "scipy.optimize", "ldpc")
+#: loaded by the chain's estimators, decoder and tag verifier only, and by a ray-traced
+#: scene's meshes (trimesh: the PLY files are written without it)
+LAZY = ("scipy.stats", "scipy.signal", "scipy.optimize", "ldpc", "scipy.ndimage", "trimesh")
 
 
 def test_the_run_modules_load_no_chain_only_package():
-    code = ("import sys, veriloc_rt.cli, veriloc_rt.sim.engine, veriloc_rt.report.plots; "
+    code = ("import sys, veriloc_rt.cli, veriloc_rt.sim.engine, veriloc_rt.report.plots, "
+            "veriloc_rt.world.scene.export; "
             f"print(' '.join(m for m in {LAZY!r} if m in sys.modules))")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                        check=True)
@@ -65,3 +67,15 @@ def test_ldpc_decoder_built_on_first_decode():
     decoded, ok = code.decode(llr)
     assert "_decoder" in vars(code)
     assert bool(ok) and np.array_equal(decoded, bits)
+
+
+def test_writing_a_canyon_scene_loads_no_trimesh(tmp_path):
+    # the PLY writer is the package's own (trimesh's bytes, tests/unit/world/scene): a run on a
+    # generated canyon writes its meshes without importing trimesh
+    code = ("import sys, numpy as np; from veriloc_rt.world.scene.export import write_ply; "
+            f"write_ply(__import__('pathlib').Path({str(tmp_path / 'm.ply')!r}), "
+            "np.zeros((3, 3)), np.array([[0, 1, 2]])); print('trimesh' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                       check=True)
+    assert r.stdout.strip() == "False"
+    assert (tmp_path / "m.ply").stat().st_size > 0

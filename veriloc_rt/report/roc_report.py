@@ -35,6 +35,11 @@ LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
 
 #: false-alarm rate up to which roc.png's x axis is linear (logarithmic above)
 _LINEAR_FA = 0.01
+#: roc.png's fixed margins (left, right, bottom, top), inches: the tick labels, the axis labels
+#: and each panel's title, all known in advance
+_MARGINS_IN = (0.58, 0.1, 0.5, 0.32)
+#: gap between two panels, inches: the y tick labels and label of the right one
+_WSPACE_IN = 0.68
 
 
 def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
@@ -56,7 +61,7 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
     k = m["fusion"]["k"]
     path = Path(path)
     with figure(path, title, ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
-                squeeze=False) as (_, axes):
+                squeeze=False, margins_in=_MARGINS_IN, wspace_in=_WSPACE_IN) as (_, axes):
         for ax, s in zip(axes[0], attacks):
             for name in (*DETECTORS, *FUSED):
                 c = analysis.curves.get((name, s))
@@ -76,9 +81,12 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
             # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
             ax.set_xscale("symlog", linthresh=_LINEAR_FA, linscale=0.5)
             ax.set_xticks([0.0, 0.01, 0.1, 1.0], ["0", "0.01", "0.1", "1"])
-            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02), title=s,
+            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02),
                    xlabel="false alarm = 1 - benign acceptance",
                    ylabel="detection (attack rejected)")
+            # at its place (y = 1, above the axes): placed automatically, the title measures
+            # the axis' tick labels first, to clear any above the axes (there are none)
+            ax.set_title(s, y=1.0)
             ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
                       loc="lower right")
     return path

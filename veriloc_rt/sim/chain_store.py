@@ -22,6 +22,7 @@ one.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import importlib
 import json
@@ -95,7 +96,10 @@ def _enc(obj, blob: _Blob):
     raise TypeError(f"cannot store a {type(obj).__name__}")
 
 
-def _dataclass(name: str) -> type:
+@functools.lru_cache(maxsize=None)
+def _dataclass(name: str) -> tuple[type, frozenset]:
+    """The dataclass a payload names and its field names (resolved once per name: a store
+    names the same few classes in every record)."""
     module, _, qual = name.partition(":")
     if not module.startswith(_PACKAGE):
         raise ValueError(f"class {name!r} is not of this package")
@@ -104,12 +108,17 @@ def _dataclass(name: str) -> type:
         obj = getattr(obj, part)
     if not (isinstance(obj, type) and dataclasses.is_dataclass(obj)):
         raise ValueError(f"{name!r} is not a dataclass")
-    return obj
+    return obj, frozenset(f.name for f in dataclasses.fields(obj))
+
+
+@functools.lru_cache(maxsize=None)
+def _dtype(dtype_str: str) -> np.dtype:
+    return np.dtype(dtype_str)
 
 
 def _array(spec, blob: bytes) -> np.ndarray:
     dtype_str, shape, offset, size, fortran = spec
-    dtype = np.dtype(dtype_str)
+    dtype = _dtype(dtype_str)
     if dtype.hasobject:
         raise ValueError("object arrays are not stored")
     shape = tuple(int(n) for n in shape)
@@ -127,10 +136,9 @@ def _dec(node, blob: bytes):
     if isinstance(node, list):
         return [_dec(x, blob) for x in node]
     if "c" in node:
-        cls = _dataclass(node["c"])
+        cls, names = _dataclass(node["c"])
         obj = cls.__new__(cls)   # the fields as stored, past __init__/__post_init__
-        names = {f.name for f in dataclasses.fields(cls)}
-        if set(node["v"]) != names:
+        if node["v"].keys() != names:
             raise ValueError(f"{node['c']}: fields {sorted(node['v'])}, expected {sorted(names)}")
         for k, v in node["v"].items():
             object.__setattr__(obj, k, _dec(v, blob))

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from veriloc_rt.errors import InputError
-from veriloc_rt.report.plots import (COLUMNS, DETECTORS, plot_detection_rates, plot_outcomes,
-                                     plot_time_series, plot_trajectory_map, read_results_csv)
+from veriloc_rt.report.plots import (COLUMNS, DETECTORS, clear_figure_cache, plot_detection_rates,
+                                     plot_outcomes, plot_time_series, plot_trajectory_map,
+                                     read_results_csv)
 
 # A PNG with axes, bars and text is tens of kB; a blank or truncated file is far below this.
 MIN_PNG_BYTES = 5_000
@@ -104,6 +105,50 @@ def test_time_series_png(rows, tmp_path):
 def test_time_series_all_nan_error_and_no_window(rows, tmp_path):
     rows["error_m"] = np.full(NUM_POINTS, np.nan)
     assert_png(plot_time_series(rows, tmp_path / "ts.png", None))
+
+
+def pixels(path):
+    from PIL import Image
+
+    return np.asarray(Image.open(path))
+
+
+def test_time_series_reused_figure_gives_a_new_figures_pixels(rows, rng, tmp_path):
+    """The time-series figure is built once and updated per scenario; each update must give
+    exactly the pixels a figure built for that scenario alone gives (the oracle: the cache
+    cleared before each). Scenarios differ in data, length, window (or none) and title."""
+    other = {k: (v[:25] if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    other["error_m"] = rng.uniform(20.0, 30.0, 25)      # about one decade: minor labels too
+    for d in DETECTORS:
+        other[d] = rng.integers(0, 2, 25).astype(float)
+    cases = [(rows, WINDOW, "fbs"), (other, None, "none"), (rows, (0, 5), "jamming")]
+    clear_figure_cache()
+    for k, (r, window, title) in enumerate(cases):      # one figure, updated
+        plot_time_series(r, tmp_path / f"reused{k}.png", window, title=title)
+    for k, (r, window, title) in enumerate(cases):      # a new figure each
+        clear_figure_cache()
+        plot_time_series(r, tmp_path / f"new{k}.png", window, title=title)
+    for k in range(len(cases)):
+        assert np.array_equal(pixels(tmp_path / f"reused{k}.png"), pixels(tmp_path / f"new{k}.png")), k
+
+
+def test_trajectory_map_reused_figure_gives_a_new_figures_pixels(rows, tmp_path):
+    """The map's axes are kept and redrawn per scenario; each map must give the pixels of a
+    figure built for it alone. Maps with an estimate beyond the view and an adversary, without
+    fixes, and on another (smaller) area without adversary."""
+    no_fix = dict(rows, x_est=np.full(NUM_POINTS, np.nan), y_est=np.full(NUM_POINTS, np.nan))
+    small = {k: (v[:12] if isinstance(v, np.ndarray) else v) for k, v in rows.items()}
+    small["x_est"] = small["x_true"] + 3.0
+    adversary = np.column_stack([np.linspace(-50, 50, NUM_POINTS), np.zeros(NUM_POINTS)])
+    cases = [(rows, adversary, "fbs"), (no_fix, None, "jamming"), (small, None, "none")]
+    clear_figure_cache()
+    for k, (r, adv, title) in enumerate(cases):
+        plot_trajectory_map(r, BS_POS, tmp_path / f"reused{k}.png", adversary_xy=adv, title=title)
+    for k, (r, adv, title) in enumerate(cases):
+        clear_figure_cache()
+        plot_trajectory_map(r, BS_POS, tmp_path / f"new{k}.png", adversary_xy=adv, title=title)
+    for k in range(len(cases)):
+        assert np.array_equal(pixels(tmp_path / f"reused{k}.png"), pixels(tmp_path / f"new{k}.png")), k
 
 
 def test_time_series_rejects_bad_window_and_missing_column(rows, tmp_path):
