@@ -334,6 +334,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     parts: list[dict] = []
     width_t = max(max_depth - 1, 1)
     side_t = []
+    frame_t: dict[int, tuple] = {}      # target -> edge_frame of its short chains, every wedge
     for j, p in enumerate(tgt):
         if not wanted[:, j].any():
             side_t.append(None)
@@ -347,17 +348,30 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
         seq_s, img_s = sequences(geo, s, near_planes(geo, s, plane_distance), max_depth - 1)
         last_s = _last_plane(seq_s)
         ls = (seq_s >= 0).sum(1)
+        frame_s = None
         for j, t in enumerate(tgt):
             if not wanted[i, j]:
                 continue
             seq_t, img_t, last_t, lt = side_t[j]
 
-            def pairs(qs, qt, w_sel):
+            def pairs(qs, qt, w_sel, seed=False):
                 """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel, and
                 the pairs without target-side reflection that the source side sees but the
                 target does not (for :func:`edge_side`)."""
-                x, inside = keller_on_edges(img_s[qs], img_t[qt], ea[w_sel], ehat[w_sel],
-                                             elen[w_sel], geo.edge_n[w_sel])
+                if seed and len(qs) == len(frame_s[0]) * len(frame_t[j][0]):
+                    # every wedge and every (short source chain, short target chain), row
+                    # major: the ends' frames, computed once, broadcast against each other
+                    fs, ft = [f[:, None] for f in frame_s], [f[None] for f in frame_t[j]]
+                elif seed:
+                    fs, ft = [f[qs] for f in frame_s], [f[qt] for f in frame_t[j]]
+                else:
+                    us, qs_u = np.unique(qs, return_inverse=True)
+                    ut, qt_u = np.unique(qt, return_inverse=True)
+                    a_, e_, n_ = ea[w_sel], ehat[w_sel], geo.edge_n[w_sel]
+                    fs, ft = edge_frame(img_s[us], a_, e_, n_), edge_frame(img_t[ut], a_, e_, n_)
+                    fs, ft = [f[qs_u] for f in fs], [f[qt_u] for f in ft]
+                x, inside = keller_from_frames(fs, ft, elen[w_sel])
+                x, inside = x.reshape(-1, len(w_sel)), inside.reshape(-1, len(w_sel))
                 q, c = np.nonzero(inside)
                 w = w_sel[c]
                 p = ea[w] + x[q, c][:, None] * ehat[w]
@@ -403,7 +417,11 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
 
             qs, qt = np.nonzero(ls[:, None] + lt[None, :] <= max_depth - 1)
             first = (ls[qs] <= SEED_REFLECTIONS) & (lt[qt] <= SEED_REFLECTIONS)
-            found, blocked = pairs(qs[first], qt[first], np.arange(geo.num_wedges))
+            if j not in frame_t:
+                frame_t[j] = edge_frame(img_t[lt <= SEED_REFLECTIONS], ea, ehat, geo.edge_n)
+            if frame_s is None:       # the short chains lead the sequences (breadth first)
+                frame_s = edge_frame(img_s[ls <= SEED_REFLECTIONS], ea, ehat, geo.edge_n)
+            found, blocked = pairs(qs[first], qt[first], np.arange(geo.num_wedges), seed=True)
             found, blocked = [found], [blocked]
             if (~first).any():
                 # the wedges the shorter chains reached, their neighbours, and the wedges of the
@@ -459,22 +477,34 @@ def keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
     :param S, T: [Q, 3] m;  a, e: [W, 3];  length: [W] m;  n: [W, 2, 3]
     :returns: x [Q, W] m and the mask [Q, W] of pairs that pass
     """
+    return keller_from_frames(edge_frame(S, a, e, n), edge_frame(T, a, e, n), length)
+
+
+def edge_frame(P: np.ndarray, a: np.ndarray, e: np.ndarray,
+               n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where points ``P`` [k, 3] m stand relative to edges (a, e, n as in
+    :func:`keller_on_edges`): the coordinate along the edge ``u = (P - a) . e`` [k, W] m, the
+    distance to the edge's line [k, W] m and whether the point is in front of one of the
+    edge's faces [k, W] bool. One end's share of :func:`keller_on_edges`, computed once per
+    end and reused for every end it is paired with."""
     ae = np.einsum("ij,ij->i", a, e)
-    u = S @ e.T - ae                                   # (S - a) . e
-    v = T @ e.T - ae
+    u = P @ e.T - ae                                   # (P - a) . e
     aa = np.einsum("ij,ij->i", a, a)
-    ss = np.einsum("ij,ij->i", S, S)[:, None] - 2.0 * (S @ a.T) + aa
-    tt = np.einsum("ij,ij->i", T, T)[:, None] - 2.0 * (T @ a.T) + aa
-    rs = np.sqrt(np.maximum(ss - u * u, 0.0))
-    rt = np.sqrt(np.maximum(tt - v * v, 0.0))
+    pp = np.einsum("ij,ij->i", P, P)[:, None] - 2.0 * (P @ a.T) + aa
+    r = np.sqrt(np.maximum(pp - u * u, 0.0))
+    h0 = P @ n[:, 0].T - np.einsum("ij,ij->i", a, n[:, 0])
+    h1 = P @ n[:, 1].T - np.einsum("ij,ij->i", a, n[:, 1])
+    return u, r, (h0 > 0) | (h1 > 0)
+
+
+def keller_from_frames(fs: tuple, ft: tuple, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`keller_on_edges` from the source's and the target's :func:`edge_frame` (arrays
+    [..., W] that broadcast against each other). -> x [..., W] m, mask [..., W]"""
+    u, rs, front_s = fs
+    v, rt, front_t = ft
     with np.errstate(invalid="ignore", divide="ignore"):
         x = u + (v - u) * rs / (rs + rt)
-    ok = _inside(x, length)
-    for side in (S, T):
-        h0 = side @ n[:, 0].T - np.einsum("ij,ij->i", a, n[:, 0])
-        h1 = side @ n[:, 1].T - np.einsum("ij,ij->i", a, n[:, 1])
-        ok &= (h0 > 0) | (h1 > 0)
-    return x, ok
+    return x, _inside(x, length) & front_s & front_t
 
 
 def _last_plane(seq: np.ndarray) -> np.ndarray:
