@@ -518,15 +518,17 @@ def _last_vertex(geo: SceneGeometry, end: np.ndarray, img: np.ndarray, last: np.
     """The vertex before the diffraction point ``p`` on one side: the end itself, or the
     reflection point on the last plane (where the line from the full image to ``p`` crosses
     it). [n, 3] m"""
-    out = np.repeat(end[None].astype(float), len(p), axis=0)
     r = last >= 0
-    if r.any():
-        n, d = geo.plane_n[last[r]], geo.plane_d[last[r]]
-        u = p[r] - img[r]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            f = (d - np.einsum("ij,ij->i", n, img[r])) / np.einsum("ij,ij->i", n, u)
-            out[r] = img[r] + f[:, None] * u       # NaN where the line is parallel to it
-    return out
+    if not r.any():
+        return np.repeat(end[None].astype(float), len(p), axis=0)
+    # every row as if it reflected (the rows that do not take the end): no masked copies
+    pl = np.maximum(last, 0)
+    n, d = geo.plane_n[pl], geo.plane_d[pl]
+    u = p - img
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (d - np.einsum("ij,ij->i", n, img)) / np.einsum("ij,ij->i", n, u)
+        out = img + f[:, None] * u             # NaN where the line is parallel to the plane
+    return np.where(r[:, None], out, end)
 
 
 def _assemble(geo: SceneGeometry, parts: list[dict], max_depth: int) -> Candidates:

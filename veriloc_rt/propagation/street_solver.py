@@ -120,10 +120,11 @@ class StreetCandidateGenerator:
     def _visible(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Whether the segments a-b [n, 3] m meet no surface away from their ends (False where
         an end is not finite). -> [n] bool"""
-        finite = np.all(np.isfinite(a), axis=1) & np.all(np.isfinite(b), axis=1)
+        finite = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
         if not finite.any():
             return finite
-        a, b = np.where(finite[:, None], a, 0.0), np.where(finite[:, None], b, 1.0)
+        if not finite.all():
+            a, b = np.where(finite[:, None], a, 0.0), np.where(finite[:, None], b, 1.0)
         d = b - a
         length = np.linalg.norm(d, axis=1)
         u = d / np.where(length > 0, length, 1.0)[:, None]
