@@ -76,6 +76,10 @@ WEDGE_REACH = 2.0
 #: exhaust the memory (docs/real-cities.md)
 MAX_NEAR_PLANES = 12
 
+#: A candidate whose diffraction point and end image both lie more than this behind the plane of
+#: the reflection next to the diffraction point cannot be a path (:func:`hopeless`), m
+REFLECTION_SIDE_MARGIN_M = 0.01
+
 #: Two traced paths are one when their interaction sequences are equal, their delays within
 #: link_metrics.SAME_PATH_TOL_S (the project's path identity) and their angles at both ends
 #: within SAME_ANGLE_RAD
@@ -385,7 +389,13 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                     b = ~ok & (lt[qt[q]] == 0)
                     blocked = (qs[q[b]], w[b], p[b])
                     q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-                return (qs[q], seq_t[qt[q]], w, p, lit0), blocked
+                # the pairs that pass seed the longer chains and (blocked) edge_side; the
+                # hopeless ones among them are not handed to the image method, which would
+                # reject them
+                ok = ~hopeless(geo, last_s[qs[q]], img_s[qs[q]], p) & ~(
+                    (lt[qt[q]] == 1) & hopeless(geo, last_t[qt[q]], img_t[qt[q]], p))
+                kept = (qs[q[ok]], seq_t[qt[q[ok]]], w[ok], p[ok], lit0[ok])
+                return kept, blocked, w
 
             def edge_side(fqs, w, p):
                 """One reflection between the edge and the target on a plane near the
@@ -405,6 +415,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                     T2[inside], x[inside]
                 p2 = ea[w] + x[:, None] * ehat[w]
                 lit0, keep = _wedge_tests(geo, S2, T2, w, p2)
+                keep &= ~hopeless(geo, last_s[fqs], S2, p2) & ~hopeless(geo, pl, T2, p2)
                 fqs, w, pl, S2, T2, p2, lit0 = (v[keep] for v in (fqs, w, pl, S2, T2, p2, lit0))
                 if visible is not None and len(w):
                     r = _last_vertex(geo, t, T2, pl, p2)                      # on the plane
@@ -421,16 +432,17 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                 frame_t[j] = edge_frame(img_t[lt <= SEED_REFLECTIONS], ea, ehat, geo.edge_n)
             if frame_s is None:       # the short chains lead the sequences (breadth first)
                 frame_s = edge_frame(img_s[ls <= SEED_REFLECTIONS], ea, ehat, geo.edge_n)
-            found, blocked = pairs(qs[first], qt[first], np.arange(geo.num_wedges), seed=True)
+            found, blocked, reached = pairs(qs[first], qt[first], np.arange(geo.num_wedges),
+                                            seed=True)
             found, blocked = [found], [blocked]
             if (~first).any():
                 # the wedges the shorter chains reached, their neighbours, and the wedges of the
                 # planes the longer chains reflect on (a roof edge of the street's own walls,
                 # seen only after two reflections between them)
-                w2 = np.union1d(geo.with_neighbours(found[0][2]), np.union1d(
+                w2 = np.union1d(geo.with_neighbours(reached), np.union1d(
                     geo.near_wedges(s, seq_s[qs[~first]], WEDGE_REACH * plane_distance),
                     geo.near_wedges(t, seq_t[qt[~first]], WEDGE_REACH * plane_distance)))
-                f2, b2 = pairs(qs[~first], qt[~first], w2)
+                f2, b2, _ = pairs(qs[~first], qt[~first], w2)
                 found.append(f2)
                 blocked.append(b2)
             if edge_reflections:
@@ -454,6 +466,30 @@ def _wedge_tests(geo: SceneGeometry, S: np.ndarray, T: np.ndarray, w: np.ndarray
     lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
     out = (np.einsum("ij,ij->i", k_out, n0) > 0) | (np.einsum("ij,ij->i", k_out, n1) > 0)
     return lit0, (lit0 | lit1) & out
+
+
+def hopeless(geo: SceneGeometry, plane: np.ndarray, img: np.ndarray,
+             p: np.ndarray) -> np.ndarray:
+    """Candidates that cannot be paths: the diffraction point ``p`` [n, 3] m and the end's image
+    ``img`` [n, 3] m (the source's full image, or the target's image in its one reflection) both
+    lie more than REFLECTION_SIDE_MARGIN_M behind ``plane`` [n] int (-1: no reflection, never
+    hopeless), the plane of the reflection next to the diffraction point.
+
+    The segment joining them (the unfolded path between the diffraction point and that end) lies
+    in that half-space, which is convex, so it never crosses the plane: there is no reflection
+    point. Sionna RT's image method traces from the diffraction point towards the image (from
+    the target towards the diffraction point's image, on the target side) and requires the hit
+    to lie on the plane or on a triangle giving the same image to 1 cm, so it rejects the
+    candidate. A target-side chain of two reflections is not covered: its first vertex from the
+    target need not lie in front of the plane. -> [n] bool
+    """
+    out = np.zeros(len(p), bool)
+    r = plane >= 0
+    if r.any():
+        n, d = geo.plane_n[plane[r]], geo.plane_d[plane[r]]
+        out[r] = (np.einsum("ij,ij->i", n, p[r]) - d < -REFLECTION_SIDE_MARGIN_M) & \
+            (np.einsum("ij,ij->i", n, img[r]) - d < -REFLECTION_SIDE_MARGIN_M)
+    return out
 
 
 def _inside(x: np.ndarray, length: np.ndarray) -> np.ndarray:
