@@ -359,9 +359,12 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
             seq_t, img_t, last_t, lt = side_t[j]
 
             def pairs(qs, qt, w_sel, seed=False):
-                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel, and
-                the pairs without target-side reflection that the source side sees but the
-                target does not (for :func:`edge_side`)."""
+                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel (those
+                that pass every test and are not :func:`hopeless`), the pairs without
+                target-side reflection that the source side sees but the target does not (for
+                :func:`edge_side`), and the wedges of the pairs that pass every occlusion test,
+                hopeless or not (they seed the longer chains). ``seed``: the short chains on
+                every wedge, whose edge frames are computed once per end."""
                 if seed and len(qs) == len(frame_s[0]) * len(frame_t[j][0]):
                     # every wedge and every (short source chain, short target chain), row
                     # major: the ends' frames, computed once, broadcast against each other
@@ -379,23 +382,23 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                 q, c = np.nonzero(inside)
                 w = w_sel[c]
                 p = ea[w] + x[q, c][:, None] * ehat[w]
-                lit0, keep = _wedge_tests(geo, img_s[qs[q]], img_t[qt[q]], w, p)
-                q, w, p, lit0 = q[keep], w[keep], p[keep], lit0[keep]
+                a_s, a_t = qs[q], qt[q]                   # the pairs' source / target chains
+                lit0, keep = _wedge_tests(geo, img_s[a_s], img_t[a_t], w, p)
+                k = np.flatnonzero(keep)                  # the pairs still in, as indices
                 blocked = (qs[:0], w[:0], p[:0])
-                if visible is not None and len(q):
-                    ok = visible(_last_vertex(geo, s, img_s[qs[q]], last_s[qs[q]], p), p)
-                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-                    ok = visible(_last_vertex(geo, t, img_t[qt[q]], last_t[qt[q]], p), p)
-                    b = ~ok & (lt[qt[q]] == 0)
-                    blocked = (qs[q[b]], w[b], p[b])
-                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-                # the pairs that pass seed the longer chains and (blocked) edge_side; the
-                # hopeless ones among them are not handed to the image method, which would
-                # reject them
-                ok = ~hopeless(geo, last_s[qs[q]], img_s[qs[q]], p) & ~(
-                    (lt[qt[q]] == 1) & hopeless(geo, last_t[qt[q]], img_t[qt[q]], p))
-                kept = (qs[q[ok]], seq_t[qt[q[ok]]], w[ok], p[ok], lit0[ok])
-                return kept, blocked, w
+                if visible is not None and len(k):
+                    k = k[visible(_last_vertex(geo, s, img_s[a_s[k]], last_s[a_s[k]], p[k]),
+                                  p[k])]
+                    ok = visible(_last_vertex(geo, t, img_t[a_t[k]], last_t[a_t[k]], p[k]), p[k])
+                    b = k[~ok & (lt[a_t[k]] == 0)]
+                    blocked = (a_s[b], w[b], p[b])
+                    k = k[ok]
+                # the pairs that pass seed the longer chains (and the blocked ones edge_side);
+                # the hopeless ones among them are not handed to the image method
+                lost = hopeless(geo, last_s[a_s[k]], img_s[a_s[k]], p[k]) | (
+                    (lt[a_t[k]] == 1) & hopeless(geo, last_t[a_t[k]], img_t[a_t[k]], p[k]))
+                f = k[~lost]
+                return (a_s[f], seq_t[a_t[f]], w[f], p[f], lit0[f]), blocked, w[k]
 
             def edge_side(fqs, w, p):
                 """One reflection between the edge and the target on a plane near the
