@@ -122,7 +122,8 @@ class StreetCandidateGenerator:
         an end is not finite). -> [n] bool"""
         # a NaN or an infinity in a row makes its sum non-finite (coordinates are far below
         # the float64 overflow), at a fraction of the cost of np.isfinite(...).all(axis=1)
-        finite = np.isfinite(a[:, 0] + a[:, 1] + a[:, 2] + b[:, 0] + b[:, 1] + b[:, 2])
+        with np.errstate(invalid="ignore", over="ignore"):       # inf - inf: NaN, not finite
+            finite = np.isfinite(a[:, 0] + a[:, 1] + a[:, 2] + b[:, 0] + b[:, 1] + b[:, 2])
         if not finite.any():
             return finite
         if not finite.all():
