@@ -330,8 +330,9 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     source-side vertex (the source or the last reflection point) is free, and likewise on the
     target side. Chains longer than SEED_REFLECTIONS on either side are tried only on the
     wedges the shorter ones reached, their neighbours, and the wedges of the planes the longer
-    chains reflect on within WEDGE_REACH * ``plane_distance`` of their end. Sionna's image method then checks every segment of what
-    remains.
+    chains reflect on within WEDGE_REACH * ``plane_distance`` of their end. Candidates that
+    cannot be paths (:func:`hopeless`) are dropped after the occlusion tests (they still seed
+    the longer chains). Sionna's image method then checks every segment of what remains.
 
     :param src: [num_src, 3] m;  tgt: [num_tgt, 3] m
     :param max_depth: interactions per path (>= 1)
