@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Callable
 
 import numpy as np
@@ -75,6 +76,10 @@ WEDGE_REACH = 2.0
 #: roof slope and detail its own plane), and chains of up to three reflections over all of them
 #: exhaust the memory (docs/real-cities.md)
 MAX_NEAR_PLANES = 12
+
+#: A candidate whose diffraction point and end image both lie more than this behind the plane of
+#: the reflection next to the diffraction point cannot be a path (:func:`hopeless`), m
+REFLECTION_SIDE_MARGIN_M = 0.01
 
 #: Two traced paths are one when their interaction sequences are equal, their delays within
 #: link_metrics.SAME_PATH_TOL_S (the project's path identity) and their angles at both ends
@@ -197,6 +202,16 @@ class SceneGeometry:
             np.einsum("ij,ij->i", e, e), 1e-12), 0.0, 1.0)
         return w[np.linalg.norm(a + x[:, None] * e - p, axis=1) <= dist]
 
+    @cached_property
+    def edge_n0(self) -> np.ndarray:
+        """[num_wedges, 3] the normal of each wedge's face 0, contiguous (fast row gathers)."""
+        return np.ascontiguousarray(self.edge_n[:, 0])
+
+    @cached_property
+    def edge_n1(self) -> np.ndarray:
+        """[num_wedges, 3] the normal of each wedge's face 1, contiguous."""
+        return np.ascontiguousarray(self.edge_n[:, 1])
+
     @property
     def num_planes(self) -> int:
         return len(self.plane_d)
@@ -315,8 +330,9 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     source-side vertex (the source or the last reflection point) is free, and likewise on the
     target side. Chains longer than SEED_REFLECTIONS on either side are tried only on the
     wedges the shorter ones reached, their neighbours, and the wedges of the planes the longer
-    chains reflect on within WEDGE_REACH * ``plane_distance`` of their end. Sionna's image method then checks every segment of what
-    remains.
+    chains reflect on within WEDGE_REACH * ``plane_distance`` of their end. Candidates that
+    cannot be paths (:func:`hopeless`) are dropped after the occlusion tests (they still seed
+    the longer chains). Sionna's image method then checks every segment of what remains.
 
     :param src: [num_src, 3] m;  tgt: [num_tgt, 3] m
     :param max_depth: interactions per path (>= 1)
@@ -334,6 +350,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
     parts: list[dict] = []
     width_t = max(max_depth - 1, 1)
     side_t = []
+    frame_t: dict[int, tuple] = {}      # target -> edge_frame of its short chains, every wedge
     for j, p in enumerate(tgt):
         if not wanted[:, j].any():
             side_t.append(None)
@@ -347,31 +364,57 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
         seq_s, img_s = sequences(geo, s, near_planes(geo, s, plane_distance), max_depth - 1)
         last_s = _last_plane(seq_s)
         ls = (seq_s >= 0).sum(1)
+        frame_s = None
         for j, t in enumerate(tgt):
             if not wanted[i, j]:
                 continue
             seq_t, img_t, last_t, lt = side_t[j]
 
-            def pairs(qs, qt, w_sel):
-                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel, and
-                the pairs without target-side reflection that the source side sees but the
-                target does not (for :func:`edge_side`)."""
-                x, inside = keller_on_edges(img_s[qs], img_t[qt], ea[w_sel], ehat[w_sel],
-                                             elen[w_sel], geo.edge_n[w_sel])
-                q, c = np.nonzero(inside)
+            def pairs(qs, qt, w_sel, seed=False):
+                """Kept (row, wedge) pairs of the (qs, qt) sequence rows on wedges w_sel (those
+                that pass every test and are not :func:`hopeless`), the pairs without
+                target-side reflection that the source side sees but the target does not (for
+                :func:`edge_side`), and the wedges of the pairs that pass every occlusion test,
+                hopeless or not (they seed the longer chains). ``seed``: the short chains on
+                every wedge, whose edge frames are computed once per end."""
+                if seed and len(qs) == len(frame_s[0]) * len(frame_t[j][0]):
+                    # every wedge and every (short source chain, short target chain), row
+                    # major: the ends' frames, computed once, broadcast against each other
+                    fs, ft = [f[:, None] for f in frame_s], [f[None] for f in frame_t[j]]
+                elif seed:
+                    fs, ft = [f[qs] for f in frame_s], [f[qt] for f in frame_t[j]]
+                else:
+                    us, qs_u = np.unique(qs, return_inverse=True)
+                    ut, qt_u = np.unique(qt, return_inverse=True)
+                    a_, e_, n_ = ea[w_sel], ehat[w_sel], geo.edge_n[w_sel]
+                    fs, ft = edge_frame(img_s[us], a_, e_, n_), edge_frame(img_t[ut], a_, e_, n_)
+                    fs, ft = [f[qs_u] for f in fs], [f[qt_u] for f in ft]
+                x, inside = keller_from_frames(fs, ft, elen[w_sel])
+                x, inside = x.reshape(-1, len(w_sel)), inside.reshape(-1, len(w_sel))
+                flat = np.flatnonzero(inside)             # row major, as np.nonzero
+                q, c = np.divmod(flat, len(w_sel))
                 w = w_sel[c]
-                p = ea[w] + x[q, c][:, None] * ehat[w]
-                lit0, keep = _wedge_tests(geo, img_s[qs[q]], img_t[qt[q]], w, p)
-                q, w, p, lit0 = q[keep], w[keep], p[keep], lit0[keep]
+                p = _rows(ea, w) + np.take(x, flat)[:, None] * _rows(ehat, w)
+                a_s, a_t = qs[q], qt[q]                   # the pairs' source / target chains
+                S, T = _rows(img_s, a_s), _rows(img_t, a_t)
+                lit0, keep = _wedge_tests(geo, S, T, w, p)
+                k = np.flatnonzero(keep)                  # the pairs still in, as indices
                 blocked = (qs[:0], w[:0], p[:0])
-                if visible is not None and len(q):
-                    ok = visible(_last_vertex(geo, s, img_s[qs[q]], last_s[qs[q]], p), p)
-                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-                    ok = visible(_last_vertex(geo, t, img_t[qt[q]], last_t[qt[q]], p), p)
-                    b = ~ok & (lt[qt[q]] == 0)
-                    blocked = (qs[q[b]], w[b], p[b])
-                    q, w, p, lit0 = q[ok], w[ok], p[ok], lit0[ok]
-                return (qs[q], seq_t[qt[q]], w, p, lit0), blocked
+                if visible is not None and len(k):
+                    pk = _rows(p, k)
+                    ok = visible(_last_vertex(geo, s, _rows(S, k), last_s[a_s[k]], pk), pk)
+                    k, pk = k[ok], _rows(pk, np.flatnonzero(ok))
+                    ok = visible(_last_vertex(geo, t, _rows(T, k), last_t[a_t[k]], pk), pk)
+                    b = k[~ok & (lt[a_t[k]] == 0)]
+                    blocked = (a_s[b], w[b], _rows(p, b))
+                    k = k[ok]
+                # the pairs that pass seed the longer chains (and the blocked ones edge_side);
+                # the hopeless ones among them are not handed to the image method
+                pk = _rows(p, k)
+                lost = hopeless(geo, last_s[a_s[k]], _rows(S, k), pk) | (
+                    (lt[a_t[k]] == 1) & hopeless(geo, last_t[a_t[k]], _rows(T, k), pk))
+                f = k[~lost]
+                return (a_s[f], _rows(seq_t, a_t[f]), w[f], _rows(p, f), lit0[f]), blocked, w[k]
 
             def edge_side(fqs, w, p):
                 """One reflection between the edge and the target on a plane near the
@@ -391,6 +434,7 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
                     T2[inside], x[inside]
                 p2 = ea[w] + x[:, None] * ehat[w]
                 lit0, keep = _wedge_tests(geo, S2, T2, w, p2)
+                keep &= ~hopeless(geo, last_s[fqs], S2, p2) & ~hopeless(geo, pl, T2, p2)
                 fqs, w, pl, S2, T2, p2, lit0 = (v[keep] for v in (fqs, w, pl, S2, T2, p2, lit0))
                 if visible is not None and len(w):
                     r = _last_vertex(geo, t, T2, pl, p2)                      # on the plane
@@ -403,16 +447,21 @@ def street_candidates(geo: SceneGeometry, src: np.ndarray, tgt: np.ndarray, max_
 
             qs, qt = np.nonzero(ls[:, None] + lt[None, :] <= max_depth - 1)
             first = (ls[qs] <= SEED_REFLECTIONS) & (lt[qt] <= SEED_REFLECTIONS)
-            found, blocked = pairs(qs[first], qt[first], np.arange(geo.num_wedges))
+            if j not in frame_t:
+                frame_t[j] = edge_frame(img_t[lt <= SEED_REFLECTIONS], ea, ehat, geo.edge_n)
+            if frame_s is None:       # the short chains lead the sequences (breadth first)
+                frame_s = edge_frame(img_s[ls <= SEED_REFLECTIONS], ea, ehat, geo.edge_n)
+            found, blocked, reached = pairs(qs[first], qt[first], np.arange(geo.num_wedges),
+                                            seed=True)
             found, blocked = [found], [blocked]
             if (~first).any():
                 # the wedges the shorter chains reached, their neighbours, and the wedges of the
                 # planes the longer chains reflect on (a roof edge of the street's own walls,
                 # seen only after two reflections between them)
-                w2 = np.union1d(geo.with_neighbours(found[0][2]), np.union1d(
+                w2 = np.union1d(geo.with_neighbours(reached), np.union1d(
                     geo.near_wedges(s, seq_s[qs[~first]], WEDGE_REACH * plane_distance),
                     geo.near_wedges(t, seq_t[qt[~first]], WEDGE_REACH * plane_distance)))
-                f2, b2 = pairs(qs[~first], qt[~first], w2)
+                f2, b2, _ = pairs(qs[~first], qt[~first], w2)
                 found.append(f2)
                 blocked.append(b2)
             if edge_reflections:
@@ -431,11 +480,41 @@ def _wedge_tests(geo: SceneGeometry, S: np.ndarray, T: np.ndarray, w: np.ndarray
     and target images ``T`` [n, 3]: (the incident ray comes from the exterior of face 0 [n],
     it comes from the exterior of a face and leaves into the exterior of one [n])."""
     k_in, k_out = p - S, T - p
-    n0, n1 = geo.edge_n[w, 0], geo.edge_n[w, 1]
+    n0, n1 = _rows(geo.edge_n0, w), _rows(geo.edge_n1, w)
     lit0 = np.einsum("ij,ij->i", k_in, n0) < 0
     lit1 = np.einsum("ij,ij->i", k_in, n1) < 0
     out = (np.einsum("ij,ij->i", k_out, n0) > 0) | (np.einsum("ij,ij->i", k_out, n1) > 0)
     return lit0, (lit0 | lit1) & out
+
+
+def hopeless(geo: SceneGeometry, plane: np.ndarray, img: np.ndarray,
+             p: np.ndarray) -> np.ndarray:
+    """Candidates that cannot be paths: the diffraction point ``p`` [n, 3] m and the end's image
+    ``img`` [n, 3] m (the source's full image, or the target's image in its one reflection) both
+    lie more than REFLECTION_SIDE_MARGIN_M behind ``plane`` [n] int (-1: no reflection, never
+    hopeless), the plane of the reflection next to the diffraction point.
+
+    The segment joining them (the unfolded path between the diffraction point and that end) lies
+    in that half-space, which is convex, so it never crosses the plane: there is no reflection
+    point. Sionna RT's image method traces from the diffraction point towards the image (from
+    the target towards the diffraction point's image, on the target side) and requires the hit
+    to lie on the plane or on a triangle giving the same image to 1 cm, so it rejects the
+    candidate. A target-side chain of two reflections is not covered: its first vertex from the
+    target need not lie in front of the plane. -> [n] bool
+    """
+    r = plane >= 0
+    if not r.any():
+        return r
+    pl = np.maximum(plane, 0)                 # every row as if it reflected: no masked copies
+    n, d = _rows(geo.plane_n, pl), geo.plane_d[pl]
+    return r & (np.einsum("ij,ij->i", n, p) - d < -REFLECTION_SIDE_MARGIN_M) & \
+        (np.einsum("ij,ij->i", n, img) - d < -REFLECTION_SIDE_MARGIN_M)
+
+
+def _rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``a[idx]`` for an index array along the first axis, as np.take (the same values, several
+    times faster than fancy indexing for rows of a few numbers)."""
+    return np.take(a, idx, axis=0)
 
 
 def _inside(x: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -459,22 +538,34 @@ def keller_on_edges(S: np.ndarray, T: np.ndarray, a: np.ndarray, e: np.ndarray,
     :param S, T: [Q, 3] m;  a, e: [W, 3];  length: [W] m;  n: [W, 2, 3]
     :returns: x [Q, W] m and the mask [Q, W] of pairs that pass
     """
+    return keller_from_frames(edge_frame(S, a, e, n), edge_frame(T, a, e, n), length)
+
+
+def edge_frame(P: np.ndarray, a: np.ndarray, e: np.ndarray,
+               n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where points ``P`` [k, 3] m stand relative to edges (a, e, n as in
+    :func:`keller_on_edges`): the coordinate along the edge ``u = (P - a) . e`` [k, W] m, the
+    distance to the edge's line [k, W] m and whether the point is in front of one of the
+    edge's faces [k, W] bool. One end's share of :func:`keller_on_edges`, computed once per
+    end and reused for every end it is paired with."""
     ae = np.einsum("ij,ij->i", a, e)
-    u = S @ e.T - ae                                   # (S - a) . e
-    v = T @ e.T - ae
+    u = P @ e.T - ae                                   # (P - a) . e
     aa = np.einsum("ij,ij->i", a, a)
-    ss = np.einsum("ij,ij->i", S, S)[:, None] - 2.0 * (S @ a.T) + aa
-    tt = np.einsum("ij,ij->i", T, T)[:, None] - 2.0 * (T @ a.T) + aa
-    rs = np.sqrt(np.maximum(ss - u * u, 0.0))
-    rt = np.sqrt(np.maximum(tt - v * v, 0.0))
+    pp = np.einsum("ij,ij->i", P, P)[:, None] - 2.0 * (P @ a.T) + aa
+    r = np.sqrt(np.maximum(pp - u * u, 0.0))
+    h0 = P @ n[:, 0].T - np.einsum("ij,ij->i", a, n[:, 0])
+    h1 = P @ n[:, 1].T - np.einsum("ij,ij->i", a, n[:, 1])
+    return u, r, (h0 > 0) | (h1 > 0)
+
+
+def keller_from_frames(fs: tuple, ft: tuple, length: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`keller_on_edges` from the source's and the target's :func:`edge_frame` (arrays
+    [..., W] that broadcast against each other). -> x [..., W] m, mask [..., W]"""
+    u, rs, front_s = fs
+    v, rt, front_t = ft
     with np.errstate(invalid="ignore", divide="ignore"):
         x = u + (v - u) * rs / (rs + rt)
-    ok = _inside(x, length)
-    for side in (S, T):
-        h0 = side @ n[:, 0].T - np.einsum("ij,ij->i", a, n[:, 0])
-        h1 = side @ n[:, 1].T - np.einsum("ij,ij->i", a, n[:, 1])
-        ok &= (h0 > 0) | (h1 > 0)
-    return x, ok
+    return x, _inside(x, length) & front_s & front_t
 
 
 def _last_plane(seq: np.ndarray) -> np.ndarray:
@@ -488,15 +579,17 @@ def _last_vertex(geo: SceneGeometry, end: np.ndarray, img: np.ndarray, last: np.
     """The vertex before the diffraction point ``p`` on one side: the end itself, or the
     reflection point on the last plane (where the line from the full image to ``p`` crosses
     it). [n, 3] m"""
-    out = np.repeat(end[None].astype(float), len(p), axis=0)
     r = last >= 0
-    if r.any():
-        n, d = geo.plane_n[last[r]], geo.plane_d[last[r]]
-        u = p[r] - img[r]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            f = (d - np.einsum("ij,ij->i", n, img[r])) / np.einsum("ij,ij->i", n, u)
-            out[r] = img[r] + f[:, None] * u       # NaN where the line is parallel to it
-    return out
+    if not r.any():
+        return np.repeat(end[None].astype(float), len(p), axis=0)
+    # every row as if it reflected (the rows that do not take the end): no masked copies
+    pl = np.maximum(last, 0)
+    n, d = _rows(geo.plane_n, pl), geo.plane_d[pl]
+    u = p - img
+    with np.errstate(invalid="ignore", divide="ignore"):
+        f = (d - np.einsum("ij,ij->i", n, img)) / np.einsum("ij,ij->i", n, u)
+        out = img + f[:, None] * u             # NaN where the line is parallel to the plane
+    return np.where(r[:, None], out, end)
 
 
 def _assemble(geo: SceneGeometry, parts: list[dict], max_depth: int) -> Candidates:

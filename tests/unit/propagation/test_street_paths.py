@@ -58,6 +58,52 @@ def test_matrix_keller_equals_the_pointwise_one():
     np.testing.assert_allclose(x, ref, atol=KELLER_TOL_M)
 
 
+def test_edge_frames_broadcast_to_the_keller_points_of_every_pair():
+    """The ends' edge frames, computed once per end and broadcast (source chains x target
+    chains x edges), give every pair's Keller point (the pointwise closed form) and the same
+    bits as the row-by-row matrix form."""
+    rng = np.random.default_rng(5)
+    S, T = rng.normal(size=(4, 3)) * 40.0, rng.normal(size=(5, 3)) * 40.0
+    a = rng.normal(size=(9, 3)) * 40.0
+    e = rng.normal(size=(9, 3))
+    e /= np.linalg.norm(e, axis=1, keepdims=True)
+    n = rng.normal(size=(9, 2, 3))
+    length = np.full(9, 1e3)
+    fs, ft = sp.edge_frame(S, a, e, n), sp.edge_frame(T, a, e, n)
+    x, ok = sp.keller_from_frames([f[:, None] for f in fs], [f[None] for f in ft], length)
+    ref = sp.keller_point(S[:, None, None], T[None, :, None], a[None, None], e[None, None])
+    np.testing.assert_allclose(x, ref, atol=KELLER_TOL_M)
+    qs, qt = np.repeat(np.arange(4), 5), np.tile(np.arange(5), 4)
+    x_rows, ok_rows = sp.keller_from_frames([f[qs] for f in fs], [f[qt] for f in ft], length)
+    np.testing.assert_array_equal(x.reshape(20, 9), x_rows)
+    np.testing.assert_array_equal(ok.reshape(20, 9), ok_rows)
+
+
+def test_hopeless_candidates_have_no_reflection_point():
+    """The wall y = 2.5 facing -y; the source (0, 0, 1.5) in front of it, its image (0, 5, 1.5)
+    behind it. A diffraction point p has a reflection point on the wall exactly when the line
+    from the image to p crosses y = 2.5 between them: at t = (5 - 2.5) / (5 - p_y) in (0, 1).
+    Beyond REFLECTION_SIDE_MARGIN_M on either side, hopeless is exactly 'no crossing'; within
+    it (and without a reflection) never."""
+    geo = _street_geometry()
+    wall = next(k for k in range(geo.num_planes) if geo.plane_n[k][1] < -0.5)
+    img = np.array([0.0, 5.0, 1.5])
+    rng = np.random.default_rng(6)
+    p = np.column_stack([rng.uniform(-40, 40, 400), rng.uniform(-10, 15, 400),
+                         rng.uniform(0, 20, 400)])
+    p = p[np.abs(p[:, 1] - 2.5) > sp.REFLECTION_SIDE_MARGIN_M]
+    with np.errstate(divide="ignore"):
+        t = (5.0 - 2.5) / (5.0 - p[:, 1])
+    crossing = (t > 0) & (t < 1)
+    got = sp.hopeless(geo, np.full(len(p), wall), np.repeat(img[None], len(p), axis=0), p)
+    np.testing.assert_array_equal(got, ~crossing)
+    assert got.any() and (~got).any()
+    # just behind the wall (within the margin), or no reflection at all: never hopeless
+    near = np.array([[3.0, 2.5 + 0.5 * sp.REFLECTION_SIDE_MARGIN_M, 15.0], [3.0, 8.0, 15.0]])
+    assert not sp.hopeless(geo, np.array([wall, -1]), np.repeat(img[None], 2, axis=0),
+                           near).any()
+
+
 def _street_geometry() -> sp.SceneGeometry:
     """Two facing walls 5 m apart (y = -2.5 facing +y, y = 2.5 facing -y) and the ground."""
     v = np.array([[-50, -2.5, 0], [50, -2.5, 0], [50, -2.5, 15], [-50, -2.5, 15],
@@ -208,3 +254,25 @@ def test_exhaustive_candidates_contain_the_sampled_diffraction_paths(tmp_path):
     tau = (np.linalg.norm(p - ue[0]) + np.linalg.norm(bs[0] - p)) / SPEED_OF_LIGHT
     d_only = exh.valid[0] & (exh.interactions[0, :, 0] == 8) & (exh.interactions[0, :, 1] == 0)
     assert np.min(np.abs(exh.tau[0][d_only] - tau)) < DELAY_TOL_S
+
+
+@pytest.mark.raytrace
+def test_hopeless_candidates_are_rejected_by_the_image_method(tmp_path, monkeypatch):
+    """The street of the test above, the UE traced to the BS and to a second street-level end:
+    handing the hopeless candidates to Sionna's image method as well yields more candidates and
+    exactly the same paths (it rejects every one of them)."""
+    from veriloc_rt.propagation.sionna_rt import SionnaTracer
+
+    meshes = {"ground": ground(400.0),
+              "b": boxes([[-60, 2.5, 40, 32.5], [-60, -32.5, 40, -2.5]], [15.0, 15.0])}
+    tracer = SionnaTracer(write_test_scene(tmp_path, meshes), FC, seed=1)
+    ue = np.array([[0.0, 0.7, 1.5]])
+    ends = np.array([[20.0, 150.0, 25.0], [35.0, -0.8, 1.5]])
+    fid = RayTracingConfig(edge_candidates="exhaustive")
+    kept = tracer.trace(ue, ends, fid, 10**3)
+    n_kept = tracer.last_num_edge_candidates
+    monkeypatch.setattr(sp, "hopeless", lambda geo, plane, img, p: np.zeros(len(p), bool))
+    every = tracer.trace(ue, ends, fid, 10**3)
+    assert tracer.last_num_edge_candidates > n_kept
+    for f in kept.FIELDS:
+        np.testing.assert_array_equal(getattr(kept, f), getattr(every, f))
