@@ -287,7 +287,22 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
     return path
 
 
-class _TimeSeriesFigure:
+class _KeptFigure:
+    """A figure kept from plot to plot (:data:`_KEPT`): saving under a title, clearing."""
+
+    fig = None
+
+    def _save(self, path: Path, title: str | None) -> None:
+        if title:
+            self.fig.suptitle(title)
+        with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
+            self.fig.savefig(tmp, **_SAVE_KW.get(path.suffix.lower(), {}))
+
+    def close(self) -> None:
+        self.fig.clear()
+
+
+class _TimeSeriesFigure(_KeptFigure):
     """:func:`plot_time_series`' figure, built once per process and layout (title or none,
     threshold) and then updated for each scenario: its data, limits, attack window and title.
 
@@ -341,16 +356,10 @@ class _TimeSeriesFigure:
         if attack_window is not None:
             self.spans = [a.axvspan(attack_window[0] + 0.5, attack_window[1] + 0.5, color="red",
                                     alpha=0.15, lw=0) for a in self.axes]
-        if title:
-            self.fig.suptitle(title)
-        with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
-            self.fig.savefig(tmp, **_SAVE_KW.get(path.suffix.lower(), {}))
-
-    def close(self) -> None:
-        self.fig.clear()
+        self._save(path, title)
 
 
-class _MapFigure:
+class _MapFigure(_KeptFigure):
     """:func:`plot_trajectory_map`'s figure and axes, kept like :class:`_TimeSeriesFigure`:
     each map removes the previous one's lines and legend and draws its own on the same axes,
     whose ticks are then made once."""
@@ -375,13 +384,7 @@ class _MapFigure:
         return self.ax
 
     def save(self, path: Path, title: str | None) -> None:
-        if title:
-            self.fig.suptitle(title)
-        with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
-            self.fig.savefig(tmp, **_SAVE_KW.get(path.suffix.lower(), {}))
-
-    def close(self) -> None:
-        self.fig.clear()
+        self._save(path, title)
 
 
 #: the figures kept for reuse, by kind and layout, and their lock (one is drawn at a time)
