@@ -102,21 +102,24 @@ def test_streets_json_through_a_building(tmp_path):
     assert "inside a building" in line
 
 
-def test_sites_csv_with_a_bad_row(tmp_path):
+def _sites_config(tmp_path, rows: str) -> tuple[dict, object]:
+    """A small canyon config whose BSs come from a sites CSV of ``rows`` (and that CSV's path)."""
     sites = tmp_path / "sites.csv"
-    sites.write_text("x,y,z\n0,0,30\n50,x,30\n0,50,30\n")
-    data = {"seed": 3, "scene": {"extent_m": 140.0, "margin_m": 30.0},
-            "topology": {"sites": str(sites)}, "trajectory": {"num_points": 12, "region_m": 70.0}}
+    sites.write_text("x,y,z\n" + rows)
+    return ({"seed": 3, "scene": {"extent_m": 140.0, "margin_m": 30.0},
+             "topology": {"sites": str(sites)}, "trajectory": {"num_points": 12, "region_m": 70.0}},
+            sites)
+
+
+def test_sites_csv_with_a_bad_row(tmp_path):
+    data, sites = _sites_config(tmp_path, "0,0,30\n50,x,30\n0,50,30\n")
     line = assert_one_line(*check(tmp_path, data)[::2], f"{sites}:3")
     assert "non-numeric" in line
 
 
 def test_site_inside_a_building(tmp_path):
-    sites = tmp_path / "sites.csv"
     # (17.5, 17.5) is the centre of a 30 m block of the canyon (pitch 35 m), 15 m high
-    sites.write_text("x,y,z\n0,0,30\n17.5,17.5,10\n0,50,30\n")
-    data = {"seed": 3, "scene": {"extent_m": 140.0, "margin_m": 30.0},
-            "topology": {"sites": str(sites)}, "trajectory": {"num_points": 12, "region_m": 70.0}}
+    data, sites = _sites_config(tmp_path, "0,0,30\n17.5,17.5,10\n0,50,30\n")
     line = assert_one_line(*check(tmp_path, data)[::2], str(sites))
     assert "site 2 at (17.5, 17.5, 10.0) m is inside a building" in line
 

@@ -163,6 +163,23 @@ def occupied_power_factor(mode: str, num_subcarriers: int, comb: int, with_tag: 
     return num_subcarriers / (num_subcarriers // comb * (2 if with_tag else 1))
 
 
+#: entries a :func:`kept` store holds before it is emptied (a run uses a handful of keys)
+KEPT_MAX = 64
+
+
+def kept(store: dict, key, make):
+    """``store[key]``, made by ``make()`` the first time ``key`` is asked for; a store holding
+    more than :data:`KEPT_MAX` entries is emptied first (the layouts, patterns and plans a run
+    derives from its config)."""
+    try:
+        return store[key]
+    except KeyError:
+        if len(store) > KEPT_MAX:
+            store.clear()
+        value = store[key] = make()
+        return value
+
+
 _LAYOUTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 
@@ -171,16 +188,14 @@ def symbol_layout(ofdm: OFDM, slots) -> tuple[np.ndarray, np.ndarray]:
 
     :returns: starts, cps : [num_slots, 14] int64, samples
     """
-    key = (ofdm.numerology, ofdm.fft_size, tuple(int(s) for s in slots))
-    if key not in _LAYOUTS:
-        if len(_LAYOUTS) > 64:
-            _LAYOUTS.clear()
+    def make():
         starts = ofdm.symbol_starts(slots)
         cps = np.stack([ofdm.cp_lengths(int(s)) for s in slots])
         starts.flags.writeable = False
         cps.flags.writeable = False
-        _LAYOUTS[key] = (starts, cps)
-    return _LAYOUTS[key]
+        return starts, cps
+
+    return kept(_LAYOUTS, (ofdm.numerology, ofdm.fft_size, tuple(int(s) for s in slots)), make)
 
 
 def symbol_times(ofdm: OFDM, slots, t0: float) -> np.ndarray:
@@ -304,13 +319,7 @@ _GROUPS: dict[bytes, list] = {}
 def _groups_of(occ: np.ndarray) -> list | None:
     """:func:`occupancy_groups` of ``occ``, kept per pattern (a run's grids share a few: the
     PRS and tag REs of each BS, fixed by the config)."""
-    key = occ.tobytes() + str(occ.shape).encode()
-    groups = _GROUPS.get(key)
-    if groups is None:
-        if len(_GROUPS) > 64:
-            _GROUPS.clear()
-        groups = _GROUPS[key] = occupancy_groups(occ)
-    return groups
+    return kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from ..channel import as_slice, occupancy_groups, subcarrier_frequencies, symbol_layout
+from ..channel import as_slice, kept, occupancy_groups, subcarrier_frequencies, symbol_layout
 from ..nr.ofdm import OFDM
 from .toa import CrossSpectra, spatial_dof
 
@@ -52,18 +52,15 @@ def _replica_layout(replica: np.ndarray) -> tuple:
     :func:`~veriloc_rt.phy.channel.occupancy_groups` ``(blocks, bins, the blocks' slots, their
     symbols, the bins as a slice or index array)`` (kept per pattern)."""
     occ = replica != 0
-    key = occ.tobytes() + str(occ.shape).encode()
-    out = _LAYOUTS.get(key)
-    if out is None:
-        used = np.any(occ, axis=-1)
-        s_idx, l_idx = np.nonzero(used)
+
+    def make():
+        s_idx, l_idx = np.nonzero(np.any(occ, axis=-1))
         groups = occupancy_groups(occ[s_idx, l_idx])
         if groups is not None:
             groups = [(b, k, s_idx[b], l_idx[b], as_slice(k)) for b, k in groups]
-        if len(_LAYOUTS) > 64:
-            _LAYOUTS.clear()
-        out = _LAYOUTS[key] = (s_idx, l_idx, groups)
-    return out
+        return s_idx, l_idx, groups
+
+    return kept(_LAYOUTS, occ.tobytes() + str(occ.shape).encode(), make)
 
 
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots) -> CrossSpectra:

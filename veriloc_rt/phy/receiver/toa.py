@@ -40,7 +40,7 @@ import scipy.fft as sfft
 from scipy.special import chdtri   # chi-square inverse survival function (a ufunc: 40x
                                    # faster than scipy.stats.chi2.isf, same values)
 
-from ..channel import as_slice, occupancy_groups
+from ..channel import as_slice, kept, occupancy_groups
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
@@ -244,14 +244,12 @@ _ROTATIONS: dict = {}
 
 def _doppler_rotations(nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
     """e^{-j 2 pi nu_v t_b}: [V, B] complex64 (kept, read-only)."""
-    key = (nus.tobytes(), tc.tobytes())
-    rot = _ROTATIONS.get(key)
-    if rot is None:
-        if len(_ROTATIONS) > 64:
-            _ROTATIONS.clear()
-        rot = _ROTATIONS[key] = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)
+    def make():
+        rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)
         rot.flags.writeable = False
-    return rot
+        return rot
+
+    return kept(_ROTATIONS, (nus.tobytes(), tc.tobytes()), make)
 
 
 class ZoomPlan:
@@ -310,14 +308,12 @@ _ZOOM_PLANS: dict = {}
 def zoom_plan(pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype) -> ZoomPlan | None:
     """The :class:`ZoomPlan` of these bins and lags (kept), or None when one FFT of the whole
     grid costs less (cost ~ L log2 L per FFT: two of the chirp-z length against one of N)."""
-    key = (pos.tobytes(), l0, m, n, dtype.str)
-    if key not in _ZOOM_PLANS:
+    def make():
         size = sfft.next_fast_len(int(pos.max()) + m)
         cheaper = 2 * size * np.log2(size) < 0.8 * n * np.log2(n)
-        if len(_ZOOM_PLANS) > 64:
-            _ZOOM_PLANS.clear()
-        _ZOOM_PLANS[key] = ZoomPlan(pos, l0, m, n, dtype) if cheaper else None
-    return _ZOOM_PLANS[key]
+        return ZoomPlan(pos, l0, m, n, dtype) if cheaper else None
+
+    return kept(_ZOOM_PLANS, (pos.tobytes(), l0, m, n, dtype.str), make)
 
 
 def _antenna_power(q: np.ndarray) -> np.ndarray:
