@@ -269,7 +269,8 @@ class CountingNoise(WhiteNoise):
 @pytest.mark.parametrize("domain", ["frequency", "time"])
 def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(domain):
     """A run evaluates a point's scenarios together: the attack call reuses the benign call's
-    serving-BS signal plus noise and uplink fix (phy.chain.downlink.KeptDraw). Second method: a fresh
+    serving-BS signal plus noise and uplink fix (phy.chain.downlink.KeptDraw), and the timing of
+    the BSs whose REs the adversary leaves alone (TimingStage). Second method: a fresh
     chain computing the attack call alone, from the same generator state. Exact equality (the
     same operations on the same numbers), the caller's generator left in the same state, and
     one noise draw for the two calls."""
@@ -297,9 +298,25 @@ def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(do
     np.testing.assert_array_equal(a.uplink.toa_s, b.uplink.toa_s)
     assert a.uplink is benign.uplink
     assert not np.array_equal(a.peak_snr_db, benign.peak_snr_db)   # the attack did arrive
+    # frequency domain: the replay reaches BS 1's REs alone, so BSs 0 and 2 keep the benign
+    # call's estimates (the same objects; equal to the fresh chain's, above)
+    reused = [x is y for x, y in zip(a.toa_estimates, benign.toa_estimates)]
+    assert reused == ([True, False, True] if domain == "frequency" else [False] * 3)
+    # a signal on a free symbol changes the noise estimates: nothing is reused, and the result is
+    # still the fresh chain's
+    loud = spoof.signal.copy()
+    loud[0, 13, 5] = 1e-3
+    loud_adv = Adversary(adv, loud)
+    benign = kept(cir, 0, np.random.default_rng(7))
+    c = kept(cir, 0, np.random.default_rng(7), adversary=loud_adv)
+    d = fresh(cir, 0, np.random.default_rng(7), adversary=loud_adv)
+    assert not any(x is y for x, y in zip(c.toa_estimates, benign.toa_estimates))
+    for f in ("toa_s", "peak_snr_db", "doppler_hz", "detected"):
+        np.testing.assert_array_equal(getattr(c, f), getattr(d, f))
+    n_kept.draws = 0
     # another generator state is another noise draw
     kept(cir, 0, np.random.default_rng(8), adversary=spoof)
-    assert n_kept.draws == 2
+    assert n_kept.draws == 1
 
 
 def test_fix_only_chain_gives_the_full_chains_fix_without_aoa_or_tags():

@@ -8,6 +8,8 @@ Powers are in dBm and noise figures in dB only here, at the config boundary.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 from .fields import param
@@ -107,10 +109,17 @@ class ReceiverConfig:
                                          "hypotheses); sets a chi-square(2 x antennas) "
                                          "threshold applied on top of hearability_db",
                                          lo=1e-12, hi=0.5)
-    doppler_max_hz: float = param(400.0, "Doppler scan half-range (0 disables the scan)",
+    doppler_max_hz: float = param(400.0, "the largest Doppler scan half-range the UE supports "
+                                  "(0 disables the scan); the run's scan: doppler_scan",
                                   lo=0.0, hi=5000.0)
     doppler_step_hz: float = param(25.0, "Doppler scan step (the frame's Doppler resolution is "
                                    "1 / frame length = 100 Hz)", lo=1.0, hi=1000.0, lo_open=False)
+    doppler_scan: str = param("channel", "'channel': a run scans +-(its fastest Doppler + one "
+                              "step), in whole steps and at most doppler_max_hz: the largest "
+                              "|Doppler| of its BS -> UE and adversary -> UE paths, relayed ones "
+                              "(the adversary's receive plus transmit Doppler) included; "
+                              "'fixed': +-doppler_max_hz. A chain built alone scans "
+                              "+-doppler_max_hz", choices=("channel", "fixed"))
     aoa_method: str = param("esprit", "AoA estimator", choices=("esprit", "music"))
     aoa_snapshots: str = param("peak", "'peak': per-antenna correlation at the ToA, one snapshot "
                                "per PRS symbol; 'subcarrier': per-RE channel estimates",
@@ -136,6 +145,23 @@ class ReceiverConfig:
         if self.doppler_max_hz > 0 and self.doppler_step_hz > self.doppler_max_hz:
             raise bad_value(f"{p}doppler_step_hz", self.doppler_step_hz,
                             f"a value <= doppler_max_hz ({self.doppler_max_hz})")
+
+    def scanned_for(self, max_doppler_hz: float) -> "ReceiverConfig":
+        """This config with the Doppler scan fitted to a channel whose paths' |Doppler| is at
+        most ``max_doppler_hz`` (``doppler_scan`` 'channel'; 'fixed' or no scan: unchanged).
+
+        Half-range: the fastest Doppler rounded up to whole steps plus one step, so that the
+        scan's maximum has a neighbour on each side for its parabolic refinement; never more
+        than ``doppler_max_hz`` (the largest the UE supports).
+        """
+        if not math.isfinite(max_doppler_hz) or max_doppler_hz < 0:
+            raise ValueError(f"Argument `max_doppler_hz` must be finite and >= 0, not {max_doppler_hz!r}")
+        if self.doppler_scan != "channel" or self.doppler_max_hz <= 0:
+            return self
+        step = self.doppler_step_hz
+        half = step * (math.ceil(max_doppler_hz / step - 1e-9) + 1)
+        return dataclasses.replace(self, doppler_max_hz=float(min(half, self.doppler_max_hz)),
+                                   doppler_scan="fixed")
 
     def __post_init__(self) -> None:
         self.validate("")  # from_dict names the section

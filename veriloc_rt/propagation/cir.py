@@ -121,6 +121,11 @@ class CIR:
         out = d.min(axis=-1)
         return np.where(np.isfinite(out), out, np.nan)
 
+    def max_doppler_hz(self) -> float:
+        """The largest |Doppler| of any valid path, Hz (0 without one)."""
+        d = np.abs(self.doppler[self.valid])
+        return float(d.max()) if d.size else 0.0
+
     def has_path(self) -> np.ndarray:
         """[num_points, num_tx] bool: the link has at least one valid path."""
         return self.valid.any(axis=-1) & (self.tx_index != NO_TX)

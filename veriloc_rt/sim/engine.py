@@ -213,6 +213,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     timing.update(_peak_rss_mib())
     metrics["timing_s"] = timing
     metrics["propagation_model"] = cfg.propagation.model
+    metrics["doppler_hz"] = {"max_path": runner.max_doppler_hz, "scan": runner.doppler_scan_hz}
     analysis = analyse_detection(rows, cfg)
     if analysis is not None:
         metrics["roc"] = analysis.metrics

@@ -51,7 +51,7 @@ from ..attacks.adversary import AdversarySignal
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ChainKey", "ChainRole", "FRAME_OFFSETS", "ScenarioRunner", "frame_offset"]
+__all__ = ["ChainKey", "ChainRole", "FRAME_OFFSETS", "ScenarioRunner", "channel_doppler_hz", "frame_offset"]
 
 
 #: frame counters a run may use: the 32-bit counter of the AES-CTR counter block and the tags
@@ -106,6 +106,29 @@ class ChainRole:
     adversary: AdversarySignal
 
 
+def channel_doppler_hz(cfg: Config, propagation) -> float:
+    """The largest |Doppler| the UE receives in a run, Hz: its BS -> UE paths' and, with an
+    attack scenario, the adversary -> UE paths' plus, with meaconing, the relay's own receive
+    Doppler (the relayed signal carries both shifts)."""
+    d = propagation.bs_ue.max_doppler_hz()
+    scenarios = set(cfg.run.scenarios) - {"none"}
+    if scenarios:
+        d = max(d, propagation.adv_ue.max_doppler_hz())
+    if "meaconing" in scenarios:   # per point: the extreme sums of a received and a sent shift
+        rx, tx = propagation.bs_adv, propagation.adv_ue
+
+        def extremes(c):   # [num_points] largest and smallest valid Doppler (-inf / inf: none)
+            hi = np.where(c.valid, c.doppler, -np.inf).max(axis=(1, 2))
+            lo = np.where(c.valid, c.doppler, np.inf).min(axis=(1, 2))
+            return hi, lo
+
+        (rh, rl), (th, tl) = extremes(rx), extremes(tx)
+        both = np.isfinite(rh) & np.isfinite(th)
+        if np.any(both):
+            d = max(d, float(np.max(rh[both] + th[both])), float(-np.min(rl[both] + tl[both])))
+    return d
+
+
 class ScenarioRunner:
     """Chains, adversary and detectors of one run.
 
@@ -120,7 +143,14 @@ class ScenarioRunner:
         #: the run's chains by name, in the order a point computes them ('standard' first: the
         #: DS chain reuses its timing)
         self.roles: dict[str, ChainRole] = {}
+        #: Hz, the largest |Doppler| the UE can receive in this run (:func:`channel_doppler_hz`)
+        self.max_doppler_hz = channel_doppler_hz(cfg, propagation)
+        #: Hz, the UE's Doppler scan half-range (``receiver.doppler_scan``)
+        self.doppler_scan_hz = cfg.receiver.scanned_for(self.max_doppler_hz).doppler_max_hz
+        log.info("Doppler scan +-%.0f Hz (fastest Doppler of the run's paths %.1f Hz)",
+                 self.doppler_scan_hz, self.max_doppler_hz)
         for name, mode, plan, sec, rx in self._chain_configs(cfg):
+            rx = rx.scanned_for(self.max_doppler_hz)
             chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
                                      cfg.propagation.carrier_frequency_hz, keys)
             self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain))

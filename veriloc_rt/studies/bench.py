@@ -94,6 +94,7 @@ KNOBS = (
     Knob("waveform", "slots_per_frame", "nr.slots_per_frame", (2, 5, 10)),
     Knob("waveform", "domain", "channel.domain", ("frequency", "time")),
     Knob("waveform", "doppler_max_hz", "receiver.doppler_max_hz", (0.0, 400.0)),
+    Knob("waveform", "doppler_scan", "receiver.doppler_scan", ("channel", "fixed")),
     Knob("waveform", "doppler_step_hz", "receiver.doppler_step_hz", (100.0, 50.0, 25.0, 12.5)),
     Knob("waveform", "upsample", "receiver.upsample", (1, 2, 4, 8)),
 )

@@ -112,7 +112,9 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
     if shared_noise:
         ofdm, slots = OFDM(cfg.nr), range(cfg.nr.slots_per_frame)
         dl_noise, ul_noise = GridNoise(ofdm, slots), GridNoise(ofdm, slots)
-    chain = PositioningChain(cfg.nr, cfg.security, cfg.channel, cfg.receiver,
+    # benign links only: the scan fitted to the BS -> UE paths' Doppler (the run's rule)
+    receiver = cfg.receiver.scanned_for(bs_ue.max_doppler_hz())
+    chain = PositioningChain(cfg.nr, cfg.security, cfg.channel, receiver,
                              cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys,
                              noise=dl_noise, uplink_noise=ul_noise)
     detectors = PointDetectors.from_config(cfg.detectors)

@@ -26,3 +26,27 @@ def test_bad_input_names_the_field(cls, data, field):
     with pytest.raises(InputError) as err:
         from_dict(cls, data, field.split(".")[0])
     assert err.value.field == field
+
+
+@pytest.mark.parametrize("fastest_hz,expected_hz", [
+    (162.0, 200.0),    # 6.48 steps -> 7, plus the one beyond: 8 x 25 Hz
+    (150.0, 175.0),    # exactly 6 steps, plus one
+    (0.0, 25.0),       # a static channel still gets the neighbours of 0 Hz
+    (390.0, 400.0),    # 17 steps would be 425 Hz: capped at the UE's doppler_max_hz
+])
+def test_the_doppler_scan_fitted_to_the_channel(fastest_hz, expected_hz):
+    """receiver.doppler_scan 'channel': +-(fastest Doppler rounded up to whole steps + one
+    step), at most doppler_max_hz (worked values at the default 25 Hz step and 400 Hz cap)."""
+    got = ReceiverConfig().scanned_for(fastest_hz)
+    assert got.doppler_max_hz == expected_hz and got.doppler_scan == "fixed"
+    assert got.doppler_step_hz == ReceiverConfig().doppler_step_hz
+
+
+@pytest.mark.parametrize("cfg", [ReceiverConfig(doppler_scan="fixed"), ReceiverConfig(doppler_max_hz=0.0)])
+def test_a_fixed_or_disabled_scan_is_not_fitted(cfg):
+    assert cfg.scanned_for(12.0) == cfg
+
+
+def test_a_negative_fastest_doppler_is_refused():
+    with pytest.raises(ValueError, match="max_doppler_hz"):
+        ReceiverConfig().scanned_for(-1.0)

@@ -75,10 +75,18 @@ class DownlinkLinks:
 @dataclass(frozen=True, eq=False)
 class Received:
     """What the UE's array receives: grid [A, S, 14, K] complex128 (after the receiver's OFDM
-    demodulation in the time domain); iq [A, N] complex128 (time domain, else None)."""
+    demodulation in the time domain); iq [A, N] complex128 (time domain, else None).
+
+    benign : the serving BSs' signal plus noise (:meth:`DownlinkChannel.benign`) when ``grid`` is
+        it plus an adversary's signal confined to ``touched``, else None
+    touched : [S, 14, K] bool, the REs the adversary's signal reaches (frequency domain: its
+        grid's nonzero REs; ``grid`` equals ``benign`` on every other RE), else None
+    """
 
     grid: np.ndarray
     iq: np.ndarray | None
+    benign: np.ndarray | None = None
+    touched: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -186,8 +194,9 @@ class DownlinkChannel:
             if adv is None:
                 return Received(base, None)
             slots = self.slots[:m]
-            if sig.ndim == 3:
-                return Received(base + apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0), None)
+            if sig.ndim == 3:   # per RE: nothing reaches the REs its grid leaves empty
+                return Received(base + apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0),
+                                None, base, sig[:m] != 0)
             iq = apply_time(adv, sig[None], amp, fs, t0, self.frame_samples, self.decimation)
             return Received(base + self.ofdm.demodulate(iq, self.slots)[:, :m], None)
         iq = base

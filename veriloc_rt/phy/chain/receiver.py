@@ -71,16 +71,35 @@ class TimingStage:
         self.toa, self.ofdm, self.slots, self.channel = toa, ofdm, slots, channel
         self.search_window_s = float(search_window_s)
         self.busy_symbols = tuple(int(s) for s in busy_symbols)
+        self.free_symbols = tuple(s for s in range(14) if s not in self.busy_symbols)
         self.noise_var = float(noise_var)
+        #: the last call on a grid without an adversary: (grid, replicas, nv, dof, estimates,
+        #: spectra), what a call on that grid plus an adversary confined to some REs reuses
+        self._benign: tuple | None = None
 
     def __call__(self, received: Received, replicas: Sequence[np.ndarray], t0: float) -> Timing:
-        """:param replicas: per BS [S, 14, K] complex; t0: s, the timing reference"""
+        """:param replicas: per BS [S, 14, K] complex; t0: s, the timing reference
+
+        A BS's estimate depends only on the received grid on its replica's REs and on the
+        noise estimates from the free symbols. When ``received`` is the last benign grid plus an
+        adversary's signal that reaches neither (``Received.touched``: a false BS spoofing
+        other BSs' PRS), that BS's estimate and spectra are the benign call's, reused as they
+        are (the same inputs give the same values).
+        """
         grid = received.grid
-        nv = noise_variance(grid, self.busy_symbols)
-        nv = nv if np.isfinite(nv) else self.noise_var
-        dof = noise_dof(grid, self.busy_symbols)
+        reuse = self._reusable(received, replicas)
+        if reuse is not None:
+            nv, dof = reuse[2], reuse[3]
+        else:
+            nv = noise_variance(grid, self.busy_symbols)
+            nv = nv if np.isfinite(nv) else self.noise_var
+            dof = noise_dof(grid, self.busy_symbols)
         ests, spectra = [], []
-        for rep in replicas:
+        for j, rep in enumerate(replicas):
+            if reuse is not None and not np.any(received.touched[rep != 0]):
+                ests.append(reuse[4][j])
+                spectra.append(reuse[5][j])
+                continue
             if self.channel.per_re_receiver:
                 cs = frequency_cross_spectra(grid, rep, self.ofdm, self.slots)
             else:
@@ -88,9 +107,23 @@ class TimingStage:
                                         self.channel.timing_guard_s, self.search_window_s)
             ests.append(self.toa(cs, nv, dof))
             spectra.append(cs)
+        if received.benign is None and received.touched is None and received.iq is None:
+            self._benign = (grid, tuple(replicas), nv, dof, tuple(ests), tuple(spectra))
         det = np.array([e.detected for e in ests])
         toa = np.array([t0 + e.toa_s if e.detected else np.nan for e in ests])
         return Timing(tuple(ests), tuple(spectra), det, toa, toa - toa[0])
+
+    def _reusable(self, received: Received, replicas: Sequence[np.ndarray]) -> tuple | None:
+        """The kept benign call when ``received`` is its grid plus an adversary's signal that
+        leaves the free symbols alone and the replicas are the same, else None."""
+        kept = self._benign
+        if (kept is None or received.benign is not kept[0] or received.touched is None
+                or received.touched.shape != kept[0].shape[1:] or len(replicas) != len(kept[1])
+                or any(a is not b for a, b in zip(replicas, kept[1]))):
+            return None
+        if np.any(received.touched[:, list(self.free_symbols), :]):
+            return None
+        return kept
 
 
 class FixStage:
