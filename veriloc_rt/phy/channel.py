@@ -28,6 +28,7 @@ band: variance ``k T F f_s`` per sample, which is also the variance per RE. The 
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -294,16 +295,17 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         x = grids[li].reshape(t.size, k_n)
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
                     links.valid[li:li + 1])
+        response = _LinkResponses(one, t0)
         occ = x != 0   # a dense grid (a jammer's noise) gains nothing from groups
         groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
         if groups is None:
-            out += amp * frequency_response(one, f, flat_t, t0)[0] * x[None]
+            out += amp * response(f, flat_t) * x[None]
             touched[:] = True
             continue
         for sym, sc in groups:
-            v = frequency_response(one, f[sc], flat_t[sym], t0)[0]               # [A, Tg, Kg]
             ix = group_index(sym, sc)
-            v *= amp                  # a H X in place: the values of (amp * h) * x
+            # a H X: the values of (amp * h) * x
+            v = np.multiply(response(f[sc], flat_t[sym]), amp)                    # [A, Tg, Kg]
             v *= x[ix][None]
             if touched[ix].any():
                 out[:, ix[0], ix[1]] += v
@@ -311,6 +313,44 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
                 out[:, ix[0], ix[1]] = np.add(v, 0.0, out=v)
                 touched[ix] = True
     return out.reshape(links.num_ant, *t.shape, k_n)
+
+
+#: per thread (a chain may run in several threads of a Dask worker): the frequency responses
+#: of the last links applied, by link and then by REs (:class:`_LinkResponses`)
+_RESPONSES = threading.local()
+#: links whose responses are kept (a point applies a few: its serving links, the adversary's
+#: link to the UE and from the serving BSs, the uplinks)
+RESPONSES_MAX = 16
+
+
+class _LinkResponses:
+    """The frequency responses of one link (:func:`frequency_response`) on the REs asked for,
+    kept by the link's paths, t0, the times and the frequencies (the same numbers give the same
+    response): the chains of a point (standard, DS-tagged and encrypted PRS, on the same REs)
+    and the adversary's scenarios apply the same links to the same REs, and compute each
+    response once. A kept response is read-only."""
+
+    def __init__(self, one: Links, t0: float):
+        store = getattr(_RESPONSES, "links", None)
+        if store is None:
+            store = _RESPONSES.links = {}
+        key = (one.delays.tobytes(), one.gains.tobytes(), one.doppler.tobytes(),
+               one.valid.tobytes(), float(t0))
+        self.one, self.t0 = one, float(t0)
+        self.kept = store.get(key)
+        if self.kept is None:
+            if len(store) >= RESPONSES_MAX:
+                store.pop(next(iter(store)))   # the oldest link
+            self.kept = store[key] = {}
+
+    def __call__(self, freqs: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """H[a, t, k] of the link: [A, T, K] complex128 (read-only)."""
+        key = (times.tobytes(), freqs.tobytes())
+        h = self.kept.get(key)
+        if h is None:
+            h = self.kept[key] = frequency_response(self.one, freqs, times, self.t0)[0]
+            h.flags.writeable = False
+        return h
 
 
 _GROUPS: dict[bytes, list] = {}

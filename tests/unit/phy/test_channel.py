@@ -287,3 +287,43 @@ def test_apply_frequency_equals_the_scatter_add_bit_for_bit():
     got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
     want = _scatter_add_reference(links, grids, amps, ofdm, slots, 0.9e-6)
     np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_a_links_response_is_computed_once_and_kept_exactly(frame):
+    """apply_frequency keeps each link's response on the REs it was evaluated on (phy.channel
+    _LinkResponses): a second call with the same links and t0 (another chain's grids on the
+    same REs) evaluates no response and gives what a fresh computation gives, bit for bit; a
+    link with other paths, or another t0, is evaluated anew."""
+    import veriloc_rt.phy.channel as ch
+
+    nr, ofdm, grids, _ = frame
+    slots = range(grids.shape[1])
+    links = _links([[1e-6, 2.5e-6], [1.7e-6, 3e-6], [2e-6, 2.2e-6]], [[30.0, -80.0], [5.0, 0.0], [60.0, 10.0]], seed=5)
+    amps = np.array([1.0, 0.3, 2.0])
+    calls = []
+    real = ch.frequency_response
+    ch.frequency_response = lambda *a: calls.append(1) or real(*a)
+    try:
+        first = apply_frequency(links, grids, amps, ofdm, slots, 0.5e-6)
+        n_first = len(calls)
+        again = apply_frequency(links, 0.5 * grids, amps, ofdm, slots, 0.5e-6)
+        assert len(calls) == n_first > 0                      # nothing evaluated again
+        other = Links(links.delays, 2.0 * links.gains, links.doppler, links.valid)
+        apply_frequency(other, grids, amps, ofdm, slots, 0.5e-6)
+        assert len(calls) == 2 * n_first                      # other paths: evaluated anew
+        apply_frequency(links, grids, amps, ofdm, slots, 0.6e-6)
+        assert len(calls) == 3 * n_first                      # another t0 too
+    finally:
+        ch.frequency_response = real
+    # RESPONSES_MAX other links push these out (the oldest first): evaluated afresh
+    for seed in range(ch.RESPONSES_MAX):
+        apply_frequency(_links([[1e-6]], [[0.0]], seed=100 + seed), grids[:1], amps[:1], ofdm, slots, 0.5e-6)
+    calls.clear()
+    ch.frequency_response = lambda *a: calls.append(1) or real(*a)
+    try:
+        fresh = apply_frequency(links, 0.5 * grids, amps, ofdm, slots, 0.5e-6)
+    finally:
+        ch.frequency_response = real
+    assert len(calls) == n_first
+    np.testing.assert_array_equal(again, fresh)
+    np.testing.assert_array_equal(first, apply_frequency(links, grids, amps, ofdm, slots, 0.5e-6))
