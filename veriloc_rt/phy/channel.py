@@ -39,7 +39,7 @@ from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to
 from .nr.ofdm import OFDM
 from ..propagation.cir import CIR, array_response
 
-__all__ = ["Links", "dbm_to_watt", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
+__all__ = ["Links", "dbm_to_watt", "draw_noise", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupancy_groups",
            "group_index", "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
@@ -430,9 +430,17 @@ def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator, major_ax
         raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
     if variance <= 0:
         return np.array(x, dtype=np.complex128)
-    shape = (x.shape[major_axis],) + tuple(np.delete(x.shape, major_axis))
-    n = rng.standard_normal(shape + (2,)).view(np.complex128)[..., 0]
+    n = draw_noise(x.shape, variance, rng, major_axis)
+    n += x
+    return n
+
+
+def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_axis: int = 0) -> np.ndarray:
+    """Circular complex Gaussian noise CN(0, variance) of ``shape``, drawn as :func:`add_noise`
+    draws it (the noise :func:`add_noise` adds, without the signal): complex128, ``major_axis``
+    outermost in the draws."""
+    order = (shape[major_axis],) + tuple(np.delete(shape, major_axis))
+    n = rng.standard_normal(order + (2,)).view(np.complex128)[..., 0]
     n = np.moveaxis(n, 0, major_axis)
     n *= np.sqrt(variance / 2.0)
-    n += x
     return n

@@ -28,11 +28,11 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .channel import add_noise
+from .channel import add_noise, draw_noise
 from .nr.ofdm import OFDM
 from .nr.prs import SYMBOLS_PER_SLOT
 
-__all__ = ["GridNoise", "NoiseSource", "WhiteNoise"]
+__all__ = ["GridNoise", "KeptWhiteNoise", "NoiseSource", "WhiteNoise"]
 
 
 class NoiseSource(ABC):
@@ -59,6 +59,36 @@ class WhiteNoise(NoiseSource):
 
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
         return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+
+
+class KeptWhiteNoise(WhiteNoise):
+    """:class:`WhiteNoise` that keeps its last draws: a call from a generator in the state of a
+    kept draw, for a signal of the same shape and variance, gets the same noise without drawing
+    it again, and the generator moved past the draws as if drawn. Chains handed the same
+    generator state at one point (a run's standard-PRS and encrypted-PRS chains: common random
+    numbers, one thermal noise per point) then draw it once.
+
+    :param size: draws kept (the oldest is dropped)
+    """
+
+    follows_call_rng = True
+
+    def __init__(self, size: int = 4):
+        self.size = int(size)
+        self._kept: list[tuple] = []   # (state on entry, shape, variance, noise, state after)
+
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        if variance <= 0 or not isinstance(rng, np.random.Generator):
+            return super().__call__(x, variance, rng)
+        state = rng.bit_generator.state
+        for entry in self._kept:
+            if entry[1] == x.shape and entry[2] == variance and entry[0] == state:
+                rng.bit_generator.state = entry[4]
+                return entry[3] + x
+        noise = draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+        noise.flags.writeable = False
+        self._kept = [(state, x.shape, variance, noise, rng.bit_generator.state)] + self._kept[:self.size - 1]
+        return noise + x
 
 
 class GridNoise(NoiseSource):

@@ -8,9 +8,11 @@ Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted`
 
 1. the adversary transmits only in the attack window (``run.attack_points``) and only in an
    attack scenario; its grid comes from :class:`~veriloc_rt.attacks.adversary.AdversarySignal`;
-2. the chain runs with the noise stream ``stream(seed, "noise", mode, i)``, the same in every
-   scenario (common random numbers: a benign point gives the same chain result in every
-   scenario, so it is computed once per run and reused); the adversary's own draws come from
+2. every chain runs with the noise stream ``stream(seed, "noise", 0, i)``, the same in every
+   scenario and for both PRS modes (common random numbers: a benign point gives the same chain
+   result in every scenario, so it is computed once per run and reused, and the standard-PRS and
+   encrypted-PRS chains receive one thermal noise, drawn once:
+   :class:`~veriloc_rt.phy.noise.KeptWhiteNoise`); the adversary's own draws come from
    ``stream(seed, "adversary", scenario, mode, i)``;
 3. detectors (standard PRS only, as the paper evaluates them):
 
@@ -46,6 +48,7 @@ from ..config import Config
 from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
+from ..phy.noise import KeptWhiteNoise
 from ..rng import stream
 from ..attacks.adversary import AdversarySignal
 
@@ -94,8 +97,8 @@ class ChainRole:
 
     name : 'standard' (HMAC tags, AoA, UL fix: every detector), 'ds' (the DS-tagged grid's
         tags on the standard call's timing) or 'encrypted' (encrypted PRS, outcomes only)
-    chain : PositioningChain; prs_mode : int, 0 standard PRS, 1 encrypted (names the noise and
-        adversary streams); plan : ChainPlan of its calls (the DS chain's is made per call, on
+    chain : PositioningChain; prs_mode : int, 0 standard PRS, 1 encrypted (names the adversary's
+        stream); plan : ChainPlan of its calls (the DS chain's is made per call, on
         the standard result); adversary : AdversarySignal for this chain's frames
     """
 
@@ -149,10 +152,12 @@ class ScenarioRunner:
         self.doppler_scan_hz = cfg.receiver.scanned_for(self.max_doppler_hz).doppler_max_hz
         log.info("Doppler scan +-%.0f Hz (fastest Doppler of the run's paths %.1f Hz)",
                  self.doppler_scan_hz, self.max_doppler_hz)
+        #: the UE's thermal noise, one draw per point shared by the chains (see the module doc)
+        noise = KeptWhiteNoise()
         for name, mode, plan, sec, rx in self._chain_configs(cfg):
             rx = rx.scanned_for(self.max_doppler_hz)
             chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
-                                     cfg.propagation.carrier_frequency_hz, keys)
+                                     cfg.propagation.carrier_frequency_hz, keys, noise=noise)
             self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain))
         self.detectors = PointDetectors.from_config(cfg.detectors)
         self.tracker = KalmanTracker(cfg.detectors.tracking)
@@ -286,7 +291,7 @@ class ScenarioRunner:
         plan = role.plan if timing_from is None else ChainPlan.tags_on(timing_from)
         t = time.perf_counter()
         before = dict(role.chain.stage_s)
-        res = role.chain(p.bs_ue, i, stream(self.cfg.seed, "noise", role.prs_mode, i),
+        res = role.chain(p.bs_ue, i, stream(self.cfg.seed, "noise", 0, i),
                          frame=self.frame0 + i, adversary=adversary, plan=plan)
         self.timing["chain"] += time.perf_counter() - t
         for k in STAGES:

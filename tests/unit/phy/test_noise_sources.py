@@ -9,7 +9,7 @@ import pytest
 from veriloc_rt.config.channel import ChannelConfig
 from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.phy.channel import receiver_noise_variance
-from veriloc_rt.phy.noise import GridNoise, WhiteNoise
+from veriloc_rt.phy.noise import GridNoise, KeptWhiteNoise, WhiteNoise
 from veriloc_rt.phy.nr.ofdm import OFDM
 
 #: Boltzmann's constant (J/K, SI 2019 exact) and the reference temperature T0 = 290 K (ITU-R P.372)
@@ -98,3 +98,37 @@ def test_grid_noise_follows_the_call_generator_only_without_a_supplied_one():
     assert call.bit_generator.state == state            # the call's generator untouched
     with pytest.raises(TypeError, match="rng"):
         src.supply(7)
+
+
+def test_kept_white_noise_draws_once_per_generator_state(monkeypatch):
+    """KeptWhiteNoise (a run's chains share one thermal noise per point): the first call is
+    WhiteNoise's, bit for bit (second method: WhiteNoise on a generator in the same state); a
+    call from a generator in the same state, for another signal of the same shape, adds the
+    same noise without drawing and leaves the generator where the draws leave it; another
+    variance or shape draws anew, and at most ``size`` draws are kept."""
+    import veriloc_rt.phy.noise as noise_module
+
+    draws = []
+    real = noise_module.draw_noise
+    monkeypatch.setattr(noise_module, "draw_noise", lambda *a, **k: draws.append(1) or real(*a, **k))
+    shape = (2, 3, 14, 12)
+    rng = np.random.default_rng(5)
+    x1 = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+    x2 = 3.0 * x1[::-1]
+    kept = KeptWhiteNoise(size=2)
+    gens = [np.random.default_rng(9) for _ in range(3)]
+    ref = WhiteNoise()(x1, 0.5, gens[0])
+    y1 = kept(x1, 0.5, gens[1])
+    np.testing.assert_array_equal(y1, ref)
+    before = gens[2].bit_generator.state
+    y2 = kept(x2, 0.5, gens[2])
+    assert len(draws) == 1
+    np.testing.assert_array_equal(y2, WhiteNoise()(x2, 0.5, np.random.default_rng(9)))   # the same noise
+    assert gens[2].bit_generator.state == gens[0].bit_generator.state != before
+    kept(x2, 0.25, np.random.default_rng(9))                        # another variance
+    kept(x1[:, :1], 0.5, np.random.default_rng(9))                  # another shape
+    assert len(draws) == 3
+    # two kept (size 2): the first draw was dropped, so it is drawn again, the same values
+    again = kept(x1, 0.5, np.random.default_rng(9))
+    assert len(draws) == 4
+    np.testing.assert_array_equal(again, ref)
