@@ -185,7 +185,7 @@ def test_bad_arguments_raise(args, word):
         Multilaterator(max_residual_m=-1.0)
 
 
-# -- the refinement (MINPACK lmder port with the analytic Jacobian) ---------------------------
+# -- the refinement (MINPACK lmder through leastsq, analytic Jacobian) -------------------------
 
 #: the solver's tolerances (Multilaterator passes xtol = ftol = gtol = 1e-12)
 LM_TOL = 1e-12
