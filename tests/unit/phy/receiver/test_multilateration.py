@@ -299,3 +299,18 @@ def test_fixes_equal_scipy_least_squares_on_random_geometries():
         assert np.linalg.norm(res.position[:2] - ref.x) <= tol
         assert res.chi2 == 0.0 and res.residual_rms_m == pytest.approx(
             np.sqrt(np.mean(np.linalg.solve(w, ref.fun) ** 2)), abs=tol)
+
+
+def test_evaluation_cap_is_no_convergence_with_minpack_count():
+    """MINPACK counts the evaluation at the start and one per trial step and stops once the
+    count reaches the cap: with max_nfev = 2 every start (none exact: noisy RSTDs, 5 BSs)
+    stops after its first step, which is no convergence."""
+    bs = _polygon(5, 500.0, 20.0, height=25.0)
+    ue = np.array([60.0, -90.0, 1.5])
+    d = np.linalg.norm(bs - ue, axis=1) + np.array([0.0, 3.0, -2.0, 4.0, -1.0])
+    res = Multilaterator(max_nfev=2)(bs, (d - d[0]) / C)
+    assert not res.ok and res.status == STATUS_NO_CONVERGENCE
+    assert res.reason == ("Levenberg-Marquardt stopped: The maximum number of function "
+                          "evaluations is exceeded.")
+    assert res.nfev == 2 and np.all(np.isfinite(res.position))
+    assert multilaterate(bs, (d - d[0]) / C).ok          # the default cap converges
