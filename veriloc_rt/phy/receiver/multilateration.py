@@ -7,9 +7,10 @@ The solver
 1. initialises with a closed form (Chan/Fang: the range-difference equations are linear in
    (x, y, d_ref); with known heights the vertical offsets enter as constants, and the constraint
    d_ref^2 = |p - b_ref|^2 gives a quadratic in d_ref) and with the best node of a coarse grid;
-2. refines every start with Levenberg-Marquardt (``scipy.optimize.least_squares``) on the
-   whitened residuals (RSTD covariance sigma^2 (I + 1 1^T) for iid ToA noise), keeping the
-   lowest cost;
+2. refines every start with Levenberg-Marquardt (MINPACK's ``lmder`` through
+   ``scipy.optimize.leastsq``, the routine ``least_squares(method="lm")`` calls, with the
+   analytic Jacobian) on the whitened residuals (RSTD covariance sigma^2 (I + 1 1^T) for iid
+   ToA noise), keeping the lowest cost;
 3. checks convergence, distance from the network, and the residual: the rms range residual must
    stay below ``max_residual_m``, and with ``sigma_m`` given the whitened SSR must pass a
    chi-square(N - 3) test (RAIM-style; with 3 BSs there is no redundancy and only hyperbolas
@@ -22,6 +23,7 @@ for bad geometry or inconsistent measurements. Bad arguments (shapes, types) rai
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from math import sqrt
 
 import numpy as np
 from scipy.special import chdtri   # chi-square inverse survival function: chi2.isf(q, k) is
@@ -36,6 +38,17 @@ STATUS_TOO_FEW = "too_few_bs"
 STATUS_NO_CONVERGENCE = "no_convergence"
 STATUS_DIVERGED = "diverged"
 STATUS_RESIDUAL = "residual_check_failed"
+
+#: MINPACK's termination code (``leastsq``'s ``ier``) -> ``least_squares``' ``status`` (> 0:
+#: converged; 0: evaluation cap; -1: anything else) and ``least_squares``' message for it
+_LM_STATUS = {1: 2, 2: 3, 3: 4, 4: 1, 5: 0}
+_LM_MESSAGE = {
+    0: "The maximum number of function evaluations is exceeded.",
+    1: "`gtol` termination condition is satisfied.",
+    2: "`ftol` termination condition is satisfied.",
+    3: "`xtol` termination condition is satisfied.",
+    4: "Both `ftol` and `xtol` termination conditions are satisfied.",
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,7 +116,12 @@ def gdop(bs_pos, ue_pos, ref_index: int = 0) -> float:
     m = len(others)
     r_inv = np.eye(m) - np.ones((m, m)) / (m + 1.0)          # (I + 1 1^T)^-1
     info = h.T @ r_inv @ h
-    if np.linalg.cond(info) > 1e12:
+    # condition number of the symmetric 2 x 2 information matrix from its eigenvalues
+    # tr/2 +- sqrt(((a - c)/2)^2 + b^2) (what numpy.linalg.cond computes by an SVD)
+    (a, b), (_, c) = info.tolist()
+    half_gap = sqrt(0.25 * (a - c) * (a - c) + b * b)
+    lo, hi = 0.5 * (a + c) - half_gap, 0.5 * (a + c) + half_gap
+    if lo <= 0.0 or hi > 1e12 * lo:
         return float("inf")
     return float(np.sqrt(np.trace(np.linalg.inv(info))))
 
@@ -117,6 +135,55 @@ def _bs_line(bs_pos: np.ndarray, tol_m: float = 1e-6) -> tuple[np.ndarray, np.nd
     if sv[0] <= tol_m or (sv.size > 1 and sv[1] > tol_m):
         return None
     return c, vt[0]
+
+
+def _whitened_residuals(bs: np.ndarray, rd: np.ndarray, ref: int, h2: np.ndarray,
+                        w: np.ndarray):
+    """The refinement's residuals f = W (d_i - d_ref - rd_i)_{i != ref} and their Jacobian in
+    (x, y), d_i = sqrt(|xy - b_i|^2 + h2_i), dd_i/dxy = (xy - b_i) / d_i, in plain floats: with
+    2 unknowns and 2-5 residuals numpy's per-call cost would be most of an evaluation.
+
+    :param bs: [num_bs, 3] float64, m; rd: [num_bs] float64, m; h2: [num_bs] float64, m^2, the
+        squared height differences; w: [num_bs - 1, num_bs - 1] float64, the whitening
+    :returns: fun(xy) -> [num_bs - 1] list, m; jac(xy) -> [num_bs - 1][2] list
+    """
+    bx, by, hh = bs[:, 0].tolist(), bs[:, 1].tolist(), h2.tolist()
+    others = [i for i in range(len(bx)) if i != ref]
+    rdo = [float(rd[i]) for i in others]
+    # rows of W as (column, weight) pairs without its zeros (W is upper triangular)
+    rows = [[(k, wk) for k, wk in enumerate(row) if wk != 0.0] for row in w.tolist()]
+
+    def offsets(xy):
+        x, y = xy.tolist()
+        return [(x - bxi, y - byi, sqrt((x - bxi) * (x - bxi) + (y - byi) * (y - byi) + hi))
+                for bxi, byi, hi in zip(bx, by, hh)]
+
+    def fun(xy):
+        o = offsets(xy)
+        dr = o[ref][2]
+        r = [(o[i][2] - dr) - rdi for i, rdi in zip(others, rdo)]
+        return [sum(wk * r[k] for k, wk in row) for row in rows]
+
+    def jac(xy):
+        u = [(dx / d, dy / d) if d > 0.0 else (0.0, 0.0) for dx, dy, d in offsets(xy)]
+        gx = [u[i][0] - u[ref][0] for i in others]
+        gy = [u[i][1] - u[ref][1] for i in others]
+        return [[sum(wk * gx[k] for k, wk in row), sum(wk * gy[k] for k, wk in row)]
+                for row in rows]
+
+    return fun, jac
+
+
+@dataclass(frozen=True, eq=False)
+class _Refined:
+    """One start's refinement: x [2] float64, m; cost 0.5 |f|^2; ``least_squares``' status and
+    message; nfev, residual evaluations."""
+
+    x: np.ndarray
+    cost: float
+    status: int
+    message: str
+    nfev: int
 
 
 def chan_initialisation(bs_pos: np.ndarray, range_diff_m: np.ndarray, ref_index: int,
@@ -135,16 +202,35 @@ def chan_initialisation(bs_pos: np.ndarray, range_diff_m: np.ndarray, ref_index:
     r = range_diff_m[others]
     a = -2.0 * (s[others] - s[ref_index])
     b = r**2 - k[others] + k[ref_index]
-    if np.linalg.matrix_rank(a) < 2:
+    # one SVD gives the rank (numpy.linalg.matrix_rank's default tolerance) and the
+    # pseudo-inverse (numpy.linalg.pinv's default cut-off and arithmetic)
+    u, sv, vt = np.linalg.svd(a, full_matrices=False)
+    if np.sum(sv > sv.max() * max(a.shape) * np.finfo(float).eps) < 2:
         return []
-    pinv = np.linalg.pinv(a)
+    large = sv > 1e-15 * sv.max()
+    pinv = vt.T @ (np.where(large, 1.0 / np.where(large, sv, 1.0), 0.0)[:, None] * u.T)
     p = pinv @ b                    # x = p + q d_ref
     q = pinv @ (2.0 * r)
     e = p - s[ref_index]
-    coef = [q @ q - 1.0, 2.0 * (q @ e), e @ e + dz[ref_index] ** 2]
-    roots = np.roots(coef) if abs(coef[0]) > 1e-12 else np.array([-coef[2] / coef[1]])
-    out = [p + q * rt.real for rt in roots if abs(rt.imag) < 1e-6 * max(1.0, abs(rt)) and rt.real > 0]
+    coef = (float(q @ q - 1.0), float(2.0 * (q @ e)), float(e @ e + dz[ref_index] ** 2))
+    out = [p + q * rt for rt in _quadratic_roots(*coef) if rt > 0]
     return [c for c in out if np.all(np.isfinite(c))]
+
+
+def _quadratic_roots(c2: float, c1: float, c0: float) -> list[float]:
+    """Real roots of c2 t^2 + c1 t + c0 (linear when |c2| <= 1e-12), by the cancellation-free
+    form t1 = q / c2, t2 = c0 / q, q = -(c1 + sign(c1) sqrt(c1^2 - 4 c2 c0)) / 2 (Numerical
+    Recipes, 3rd ed., sec. 5.6). A complex pair whose imaginary part is below 1e-6 max(1, |t|)
+    (a double root split by rounding) counts as its real part, twice, as ``numpy.roots``' real
+    parts did."""
+    if abs(c2) <= 1e-12:
+        return [-c0 / c1] if c1 != 0.0 else []
+    disc = c1 * c1 - 4.0 * c2 * c0
+    if disc < 0.0:
+        re, im = -c1 / (2.0 * c2), sqrt(-disc) / (2.0 * abs(c2))
+        return [re, re] if im < 1e-6 * max(1.0, abs(complex(re, im))) else []
+    q = -0.5 * (c1 + (sqrt(disc) if c1 >= 0.0 else -sqrt(disc)))
+    return [q / c2, c0 / q] if q != 0.0 else [0.0, 0.0]
 
 
 class Multilaterator:
@@ -217,7 +303,7 @@ class Multilaterator:
     def _solve(self, bs: np.ndarray, rd: np.ndarray, ref: int) -> MultilaterationResult:
         # imported on the first fix: a run that computes no chain (a resume past its last
         # point) then never loads scipy.optimize
-        from scipy.optimize import least_squares
+        from scipy.optimize import leastsq
 
         n = bs.shape[0]
         others = np.array([i for i in range(n) if i != ref])
@@ -230,9 +316,7 @@ class Multilaterator:
             d = np.sqrt(np.sum((bs[:, :2] - xy) ** 2, axis=1) + h2)
             return (d[others] - d[ref]) - rd[others]
 
-        def fun(xy):
-            return w @ raw(xy)
-
+        fun, jac = _whitened_residuals(bs, rd, ref, h2, w)
         centroid = bs[:, :2].mean(axis=0)
         starts = chan_initialisation(bs, rd, ref, self.ue_height_m)
         starts.append(self._grid_start(bs, rd, ref, others))
@@ -246,10 +330,14 @@ class Multilaterator:
         sols = []
         for x0 in starts:
             try:
-                res = least_squares(fun, x0, method="lm", max_nfev=self.max_nfev,
-                                    xtol=1e-12, ftol=1e-12, gtol=1e-12)
-            except (ValueError, np.linalg.LinAlgError):   # pragma: no cover - defensive
+                x, _, info, mesg, ier = leastsq(fun, x0, Dfun=jac, full_output=True,
+                                                maxfev=self.max_nfev, xtol=1e-12, ftol=1e-12,
+                                                gtol=1e-12)
+            except (ValueError, TypeError, np.linalg.LinAlgError):   # pragma: no cover
                 continue
+            status = _LM_STATUS.get(ier, -1)
+            res = _Refined(x, 0.5 * float(info["fvec"] @ info["fvec"]), status,
+                           _LM_MESSAGE.get(status, mesg), int(info["nfev"]))
             if np.all(np.isfinite(res.x)) and np.isfinite(res.cost):
                 sols.append(res)
         best = min(sols, key=lambda r: r.cost) if sols else None
@@ -306,12 +394,14 @@ class Multilaterator:
         pad = max(500.0, float(np.max(hi - lo)))
         gx = np.linspace(lo[0] - pad, hi[0] + pad, self.grid_points)
         gy = np.linspace(lo[1] - pad, hi[1] + pad, self.grid_points)
-        xx, yy = np.meshgrid(gx, gy, indexing="ij")
-        pts = np.stack([xx.ravel(), yy.ravel()], axis=-1)                     # [G, 2]
-        d = np.sqrt(np.sum((pts[:, None, :] - bs[None, :, :2]) ** 2, axis=-1)
-                    + (bs[None, :, 2] - self.ue_height_m) ** 2)               # [G, N]
+        # squared offsets per axis, summed by broadcasting: node (i, j) = (gx[i], gy[j])
+        dx2 = (gx[:, None] - bs[None, :, 0]) ** 2                            # [G, N]
+        dy2 = (gy[:, None] - bs[None, :, 1]) ** 2                            # [G, N]
+        d = np.sqrt(dx2[:, None, :] + dy2[None, :, :]
+                    + (bs[:, 2] - self.ue_height_m) ** 2).reshape(-1, bs.shape[0])  # [G*G, N]
         cost = np.sum((d[:, others] - d[:, ref:ref + 1] - rd[others]) ** 2, axis=1)
-        return pts[int(np.argmin(cost))]
+        i = int(np.argmin(cost))
+        return np.array([gx[i // gy.size], gy[i % gy.size]])
 
 
 def multilaterate(bs_pos, rstd_s, ref_index: int = 0, valid=None, **config) -> MultilaterationResult:

@@ -183,3 +183,134 @@ def test_bad_arguments_raise(args, word):
         multilaterate(np.zeros((3, 3)), np.zeros(3), ref_index=5)
     with pytest.raises(ValueError, match="max_residual_m"):
         Multilaterator(max_residual_m=-1.0)
+
+
+# -- the refinement (MINPACK lmder through leastsq, analytic Jacobian) -------------------------
+
+#: the solver's tolerances (Multilaterator passes xtol = ftol = gtol = 1e-12)
+LM_TOL = 1e-12
+#: noiseless RSTDs carry a few roundings each (the 3-D norms, their difference, / c, * c), each
+#: at most eps * (largest range); inside the hull the geometry amplifies them by ~GDOP < 2 per
+#: residual; 32 such units bound the fix's error with margin (measured: <= 1.4)
+TOL_ROUNDING_EPS_RANGES = 32
+
+
+def _ranges_rstd(bs, ue, ref=0):
+    d = np.linalg.norm(bs - ue, axis=1)
+    return d, (d - d[ref]) / C
+
+
+@pytest.mark.parametrize("n_bs", [3, 4, 5, 6])
+def test_noiseless_fix_equals_the_known_position_to_float_rounding(n_bs):
+    """RSTDs computed in closed form from a known point inside the hull: the fix is that point
+    up to the float64 rounding of the ranges."""
+    bs = _polygon(n_bs, 500.0, 90.0, height=25.0)
+    rng = np.random.default_rng(100 + n_bs)
+    for _ in range(25):
+        r, a = rng.uniform(0.0, 240.0), rng.uniform(0.0, 2 * np.pi)   # inside every hull
+        ue = np.array([r * np.cos(a), r * np.sin(a), 1.5])
+        d, rstd = _ranges_rstd(bs, ue)
+        res = multilaterate(bs, rstd)
+        assert res.ok and not res.ambiguous
+        tol = TOL_ROUNDING_EPS_RANGES * np.finfo(float).eps * d.max()
+        assert np.linalg.norm(res.position - ue) <= tol
+        assert res.position[2] == 1.5 and res.residual_rms_m <= tol
+
+
+def test_inconsistent_rstds_fail_the_residual_check_at_the_least_squares_fix():
+    """Square network (BSs at (+-R, 0), (0, +-R)), reference (R, 0), RSTDs that no point
+    produces: all 0 but a 60 m excess on the opposite BS. No point has d_2 - d_0 = 60 m and
+    d_1 = d_3 = d_0 (those force x = y = 0, where d_2 = d_0). The problem is symmetric in y, so
+    the least-squares fix is (x*, 0) with x* the root of the whitened cost's derivative along x,
+    found by bracketing (brentq) as the independent reference."""
+    from scipy.optimize import brentq
+
+    r_m, excess_m, dz2 = 400.0, 60.0, (25.0 - 1.5) ** 2
+    bs = np.array([[r_m, 0, 25], [0, r_m, 25], [-r_m, 0, 25], [0, -r_m, 25.0]])
+    w = np.linalg.cholesky(np.eye(3) - np.ones((3, 3)) / 4).T
+
+    def raw(x):         # residuals (d_i - d_0) - rd_i, i = 1..3, along y = 0
+        d0, d1, d2 = (np.sqrt((r_m - x) ** 2 + dz2), np.sqrt(r_m ** 2 + x ** 2 + dz2),
+                      np.sqrt((r_m + x) ** 2 + dz2))
+        return np.array([d1 - d0, d2 - d0 - excess_m, d1 - d0])
+
+    def slope(x):       # d/dx of 0.5 |W raw|^2
+        d0, d1, d2 = (np.sqrt((r_m - x) ** 2 + dz2), np.sqrt(r_m ** 2 + x ** 2 + dz2),
+                      np.sqrt((r_m + x) ** 2 + dz2))
+        g0, g1, g2 = -(r_m - x) / d0, x / d1, (r_m + x) / d2
+        return (w @ raw(x)) @ (w @ np.array([g1 - g0, g2 - g0, g1 - g0]))
+
+    x_star = brentq(slope, -r_m / 2, r_m / 2, xtol=1e-13)
+    rms_star = float(np.sqrt(np.mean(raw(x_star) ** 2)))
+    res = multilaterate(bs, np.array([0.0, 0.0, excess_m, 0.0]) / C)
+    assert not res.ok and res.status == STATUS_RESIDUAL and "residual" in res.reason
+    assert rms_star > 10.0                                      # the default max_residual_m
+    # LM stops when the relative reduction of the sum of squares is below ftol: the remaining
+    # step is at most sqrt(ftol) |f| / sigma_min(W J) <= sqrt(ftol) |f| GDOP
+    f_norm = np.linalg.norm(w @ raw(x_star))
+    tol = np.sqrt(LM_TOL) * f_norm * res.gdop
+    assert abs(res.position[0] - x_star) <= tol and abs(res.position[1]) <= tol
+    assert res.residual_rms_m == pytest.approx(rms_star, abs=tol)
+
+
+def test_collinear_bss_report_the_mirror_twin():
+    """3 BSs on the x axis: the RSTDs of (x, y) and (x, -y) are equal, so both are exact fixes;
+    the solver refines the mirrored starts and reports the twin as the alternative."""
+    bs = np.array([[-300.0, 0.0, 25.0], [0.0, 0.0, 25.0], [350.0, 0.0, 25.0]])
+    ue = np.array([100.0, 80.0, 1.5])
+    d, rstd = _ranges_rstd(bs, ue)
+    res = multilaterate(bs, rstd)
+    assert res.ok and res.ambiguous and len(res.alternatives) == 1
+    twin = ue * [1, -1, 1]
+    tol = TOL_ROUNDING_EPS_RANGES * np.finfo(float).eps * d.max()
+    got = sorted([res.position, res.alternatives[0]], key=lambda p: p[1])
+    assert np.linalg.norm(got[0] - twin) <= tol and np.linalg.norm(got[1] - ue) <= tol
+    assert len(res.starts) % 2 == 0          # every start and its mirror image
+
+
+def test_fixes_equal_scipy_least_squares_on_random_geometries():
+    """Against scipy.optimize.least_squares(method="lm") with forward-difference Jacobians (the
+    refinement this module used before), same whitened residuals and starts, keeping the
+    lowest cost: random 4-6 BS layouts, UE near their centroid, 3 m ToA noise."""
+    from scipy.optimize import least_squares
+
+    rng = np.random.default_rng(7)
+    for _ in range(60):
+        n = int(rng.integers(4, 7))
+        bs = np.hstack([rng.uniform(-500, 500, (n, 2)), np.full((n, 1), 25.0)])
+        ue = np.append(bs[:, :2].mean(axis=0) + rng.uniform(-100, 100, 2), 1.5)
+        rd = np.linalg.norm(bs - ue, axis=1) + rng.normal(0.0, 3.0, n)
+        rd -= rd[0]
+        res = multilaterate(bs, rd / C, max_residual_m=1e4)
+        if not np.isfinite(res.gdop):
+            continue
+        w = np.linalg.cholesky(np.eye(n - 1) - np.ones((n - 1, n - 1)) / n).T
+
+        def fun(xy):
+            d = np.sqrt(np.sum((bs[:, :2] - xy) ** 2, axis=1) + (25.0 - 1.5) ** 2)
+            return w @ ((d[1:] - d[0]) - rd[1:])
+
+        ref = min((least_squares(fun, x0, method="lm", xtol=LM_TOL, ftol=LM_TOL, gtol=LM_TOL,
+                                 max_nfev=200) for x0 in res.starts), key=lambda r: r.cost)
+        assert res.ok and ref.status > 0 and not res.ambiguous
+        # both stop within sqrt(ftol) |f| GDOP of the minimiser (see the test above; xtol's
+        # bound, xtol |D x| ~ 1e-9 m, is far smaller); the difference is at most twice that
+        tol = 2 * np.sqrt(LM_TOL) * np.linalg.norm(ref.fun) * res.gdop
+        assert np.linalg.norm(res.position[:2] - ref.x) <= tol
+        assert res.chi2 == 0.0 and res.residual_rms_m == pytest.approx(
+            np.sqrt(np.mean(np.linalg.solve(w, ref.fun) ** 2)), abs=tol)
+
+
+def test_evaluation_cap_is_no_convergence_with_minpack_count():
+    """MINPACK counts the evaluation at the start and one per trial step and stops once the
+    count reaches the cap: with max_nfev = 2 every start (none exact: noisy RSTDs, 5 BSs)
+    stops after its first step, which is no convergence."""
+    bs = _polygon(5, 500.0, 20.0, height=25.0)
+    ue = np.array([60.0, -90.0, 1.5])
+    d = np.linalg.norm(bs - ue, axis=1) + np.array([0.0, 3.0, -2.0, 4.0, -1.0])
+    res = Multilaterator(max_nfev=2)(bs, (d - d[0]) / C)
+    assert not res.ok and res.status == STATUS_NO_CONVERGENCE
+    assert res.reason == ("Levenberg-Marquardt stopped: The maximum number of function "
+                          "evaluations is exceeded.")
+    assert res.nfev == 2 and np.all(np.isfinite(res.position))
+    assert multilaterate(bs, (d - d[0]) / C).ok          # the default cap converges
