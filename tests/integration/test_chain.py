@@ -269,8 +269,9 @@ class CountingNoise(WhiteNoise):
 @pytest.mark.parametrize("domain", ["frequency", "time"])
 def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(domain):
     """A run evaluates a point's scenarios together: the attack call reuses the benign call's
-    serving-BS signal plus noise and uplink fix (phy.chain.downlink.KeptDraw), and the timing of
-    the BSs whose REs the adversary leaves alone (TimingStage). Second method: a fresh
+    serving-BS signal plus noise and uplink fix (phy.chain.downlink.KeptDraw), and the timing and
+    tag checks of the BSs whose REs the adversary leaves alone (TimingStage, TagStage). Second
+    method: a fresh
     chain computing the attack call alone, from the same generator state. Exact equality (the
     same operations on the same numbers), the caller's generator left in the same state, and
     one noise draw for the two calls."""
@@ -289,7 +290,13 @@ def test_attack_call_after_the_benign_one_reuses_its_signal_and_noise_exactly(do
     spoof = Adversary(adv, 1e-3 * kept.frame_signals((0, 1, 2), 0).replicas[1])   # a weak replay of BS 1
     benign = kept(cir, 0, np.random.default_rng(7))
     rng_k, rng_f = np.random.default_rng(7), np.random.default_rng(7)
+    checked = []
+    one = kept.tags.one
+    kept.tags.one = lambda verifier, grid, est, bs, *rest: checked.append(bs) or one(verifier, grid, est, bs, *rest)
     a = kept(cir, 0, rng_k, adversary=spoof)
+    del kept.tags.one
+    # the tags of the BSs whose timing was reused are not checked again either
+    assert checked == ([1] if domain == "frequency" else [0, 1, 2])
     b = fresh(cir, 0, rng_f, adversary=spoof)
     assert n_kept.draws == 1 and n_fresh.draws == 1
     assert rng_k.bit_generator.state == rng_f.bit_generator.state

@@ -166,7 +166,7 @@ class PositioningChain:
         clock("channel")
         replicas = sig.replicas if plan.replica == "own" else None
         if given is not None:
-            tags = (self.tags(verifier, rx.grid, given.toa_estimates, frame, replicas)
+            tags = (self.tags(verifier, rx.grid, given.toa_estimates, frame, replicas, rx)
                     if verifier is not None else np.zeros(self.num_bs, dtype=bool))
             clock("tags")
             return replace(given, tags_valid=tags, tags_checked=verifier is not None)
@@ -184,7 +184,7 @@ class PositioningChain:
         else:
             aoas, az = [None] * self.num_bs, np.full(self.num_bs, np.nan)
         clock("aoa")
-        tags = (self.tags(verifier, rx.grid, timing.estimates, frame, replicas)
+        tags = (self.tags(verifier, rx.grid, timing.estimates, frame, replicas, rx)
                 if verifier is not None else np.zeros(self.num_bs, dtype=bool))
         clock("tags")
         up = None

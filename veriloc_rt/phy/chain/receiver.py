@@ -204,20 +204,44 @@ class TagStage:
 
     def __init__(self, tag_slots: Sequence[int], slots):
         self.tag_slots, self.slots = tuple(int(s) for s in tag_slots), slots
+        #: the last call on a grid without an adversary: (grid, verifier, frame, estimates,
+        #: tags), what a call on that grid plus an adversary confined to some REs reuses
+        self._benign: tuple | None = None
 
     def __call__(self, verifier: TagVerifier, grid: np.ndarray, estimates: Sequence[ToAEstimate],
-                 frame: int, replicas: Sequence[np.ndarray] | None) -> np.ndarray:
+                 frame: int, replicas: Sequence[np.ndarray] | None,
+                 received: Received | None = None) -> np.ndarray:
         """[num_bs] bool: every checked tag of each detected BS verifies.
+
+        A BS's check reads the grid only on its PRS and tag REs of the checked slots, with its
+        ToA estimate. When ``received`` is the last benign grid plus an adversary's signal
+        (``Received.benign``, ``Received.touched``) that leaves those REs alone, and the estimate
+        is the benign call's own (:class:`TimingStage` reused it), the benign verdict is reused.
 
         :param grid: [A, S, 14, K] complex, the received grid (its first slots suffice)
         :param replicas: per BS [S, 14, K], the BSs' own PRS replicas (None: the verifier
             regenerates them)
+        :param received: what ``grid`` came from (None: nothing is kept or reused)
         """
+        kept = self._benign
+        reuse = (kept is not None and received is not None and received.benign is kept[0]
+                 and received.touched is not None and kept[1] is verifier and kept[2] == frame)
         tags = np.zeros(len(estimates), dtype=bool)
         for b, e in enumerate(estimates):
+            if reuse and b < len(kept[3]) and e is kept[3][b] and not self._touched(received.touched, verifier, b):
+                tags[b] = kept[4][b]
+                continue
             rep = replicas[b] if replicas is not None else None
             tags[b] = e.detected and self.one(verifier, grid, e, b, frame, rep)
+        if received is not None and received.benign is None and received.touched is None:
+            self._benign = (grid, verifier, frame, tuple(estimates), tags.copy())
         return tags
+
+    def _touched(self, touched: np.ndarray, verifier: TagVerifier, bs: int) -> bool:
+        """Whether ``touched`` [S, 14, K] reaches a PRS or tag RE of BS ``bs`` in a checked slot."""
+        lay = verifier.layout
+        mine = lay.prs_mask(bs) | lay.tag_mask(bs)                       # [14, K]
+        return any(bool(np.any(touched[s][mine])) for s in self.tag_slots)
 
     def one(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
             replica: np.ndarray | None) -> bool:
