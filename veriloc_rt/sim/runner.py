@@ -167,6 +167,8 @@ class ScenarioRunner:
         #: seconds: adversary signals, chain calls (total and by stage, :data:`STAGES`), detectors
         self.timing = {"adversary": 0.0, "chain": 0.0, **dict.fromkeys(STAGES, 0.0), "detectors": 0.0}
         self._last_valid: np.ndarray | None = None
+        #: the last adversary signal, by (scenario, PRS mode, point)
+        self._adversary_kept: tuple = (None, None)
 
     @staticmethod
     def _chain_configs(cfg: Config) -> list[tuple]:
@@ -283,9 +285,17 @@ class ScenarioRunner:
         adversary = None
         if attack:
             t = time.perf_counter()
-            rng = stream(self.cfg.seed, "adversary", _SCEN[scenario], role.prs_mode, i)
-            sig = role.adversary(scenario, i, self.frame0 + i, p.bs_ue, p.bs_adv, self.geo.adversary.pos[i],
-                                 self.geo.ue.pos[i], rng, adv_ue=p.adv_ue)
+            # a false BS's and a jammer's signals depend on the run's config and the adversary's
+            # stream alone, not on the chain: chains of one PRS mode (standard, DS-tagged) share
+            # them; a relay's depends on the chain's frames
+            ak = (scenario, role.prs_mode, i)
+            if scenario in ("fbs", "jamming") and self._adversary_kept[0] == ak:
+                sig = self._adversary_kept[1]
+            else:
+                rng = stream(self.cfg.seed, "adversary", _SCEN[scenario], role.prs_mode, i)
+                sig = role.adversary(scenario, i, self.frame0 + i, p.bs_ue, p.bs_adv,
+                                     self.geo.adversary.pos[i], self.geo.ue.pos[i], rng, adv_ue=p.adv_ue)
+                self._adversary_kept = (ak, sig)
             adversary = Adversary(p.adv_ue, sig)
             self.timing["adversary"] += time.perf_counter() - t
         plan = role.plan if timing_from is None else ChainPlan.tags_on(timing_from)
