@@ -122,12 +122,16 @@ class CrossSpectra:
             out[:, ix] += (weights[blocks][None, None, :] @ part)[:, 0, :]
         return out
 
-    def at_delay(self, tau: float) -> np.ndarray:
-        """Per-block correlation c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128."""
-        e = np.exp(2j * np.pi * self.freqs * tau)
+    def at_delay(self, tau: float, e: np.ndarray | None = None) -> np.ndarray:
+        """Per-block correlation c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128.
+
+        :param e: [K] complex128, e^{j2pi f_k tau} when the caller has it already
+        """
+        if e is None:
+            e = np.exp(2j * np.pi * self.freqs * tau)
         out = np.zeros((self.num_ant, self.ref_power.shape[0]), dtype=np.complex128)
         for (blocks, _, part), ix in zip(self.groups, self.bin_index):
-            out[:, blocks] = part @ e[ix]
+            out[:, blocks] = (part.reshape(-1, part.shape[-1]) @ e[ix]).reshape(part.shape[:2])
         return out
 
 
@@ -162,6 +166,18 @@ class _LagGrid:
     lags: np.ndarray
     size: int
     step: float
+
+
+@dataclass(frozen=True, eq=False)
+class _Layout:
+    """What :class:`ToAEstimator` derives from the bins alone (kept per bin layout, read-only):
+    grid : the upsampled profile's :class:`_LagGrid`; scan : the Doppler scan's (no zero
+    padding); win : [K] float64, the first-path window; win32 : [K] float32, the same."""
+
+    grid: _LagGrid
+    scan: _LagGrid
+    win: np.ndarray
+    win32: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,6 +243,17 @@ def spatial_dof(x: np.ndarray) -> float:
     if tr <= 0:
         return 2.0 * a
     return float(np.clip(2.0 * tr ** 2 / float(np.sum(np.abs(r) ** 2)), 2.0, 2.0 * a))
+
+
+def _median(x: np.ndarray) -> float:
+    """Median of a 1-D array without NaNs: ``np.median``'s value (the middle element, or the mean
+    of the two middle ones) from one partition, without its checks and dispatch."""
+    n = x.size
+    k = n // 2
+    if n % 2:
+        return float(np.partition(x, k)[k])
+    part = np.partition(x, (k - 1, k))
+    return float((part[k - 1] + part[k]) / 2)
 
 
 def _parabola(ym: float, y0: float, yp: float) -> float:
@@ -338,6 +365,10 @@ class ToAEstimator:
     def __init__(self, cfg: ReceiverConfig, guard_s: float = 0.25e-6):
         self.cfg = cfg
         self.guard_s = float(guard_s)
+        #: Doppler hypotheses [V] float64, Hz (None without a scan)
+        self.hypotheses = (np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
+                           if cfg.doppler_max_hz > 0 else None)
+        self._layouts: dict = {}
 
     # -- helpers ---------------------------------------------------------------------------
     def _window(self, cs: CrossSpectra, kind: str) -> np.ndarray:
@@ -346,8 +377,8 @@ class ToAEstimator:
         x = np.clip(cs.freqs / (cs.band_hz + cs.bin_spacing_hz), -0.5, 0.5)
         return np.cos(np.pi * x) ** 2
 
-    def _grid(self, cs: CrossSpectra, upsample: int) -> tuple[np.ndarray, np.ndarray, int]:
-        """Grid indices of the bins, the searched lag indices and the grid size."""
+    def _grid(self, cs: CrossSpectra, upsample: int) -> _LagGrid:
+        """Grid indices of the bins, the searched lag indices, the grid size and the lag step."""
         idx = np.round(cs.freqs / cs.bin_spacing_hz).astype(np.int64)
         span = int(idx.max() - idx.min() + 1)
         n_up = 1 << int(np.ceil(np.log2(max(span, 2))))
@@ -356,7 +387,22 @@ class ToAEstimator:
         lags = np.arange(-int(np.ceil(self.guard_s / step)), int(np.ceil(self.cfg.search_window_s / step)) + 1)
         if lags.size >= n_up:
             raise ValueError("search window exceeds the correlation period 1 / bin spacing")
-        return idx, lags, n_up
+        for a in (idx, lags):
+            a.flags.writeable = False
+        return _LagGrid(idx, lags, n_up, step)
+
+    def _layout(self, cs: CrossSpectra) -> _Layout:
+        """The grids and the window of these bins (kept: a chain's bins are the same at every
+        call)."""
+        def make():
+            win = (self._window(cs, self.cfg.first_path_window) if self.cfg.toa_method != "strongest"
+                   else np.ones(cs.freqs.shape))
+            win32 = win.astype(np.float32)
+            for a in (win, win32):
+                a.flags.writeable = False
+            return _Layout(self._grid(cs, self.cfg.upsample), self._grid(cs, 1), win, win32)
+
+        return kept(self._layouts, (cs.freqs.tobytes(), cs.bin_spacing_hz, cs.band_hz), make)
 
     @staticmethod
     def lag_power(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int,
@@ -413,14 +459,10 @@ class ToAEstimator:
         a_ = cs.num_ant
         out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
         for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
-            q = part.astype(np.complex64).transpose(1, 0, 2).reshape(blocks.size, a_ * bins.size)
-            out[:, :, ix] = (rot[:, blocks] @ q).reshape(-1, a_, bins.size)
+            q = np.empty((blocks.size, a_, bins.size), dtype=np.complex64)   # [B_g, A, K_g]
+            q[...] = part.transpose(1, 0, 2)                                  # cast and reorder in one pass
+            out[:, :, ix] = (rot[:, blocks] @ q.reshape(blocks.size, -1)).reshape(-1, a_, bins.size)
         return out
-
-    @staticmethod
-    def _eval(g: np.ndarray, freqs: np.ndarray, tau: float) -> np.ndarray:
-        """Exact complex profile at one delay: [..., num_bins] -> [...]."""
-        return g @ np.exp(2j * np.pi * freqs * tau)
 
     def _first_crossing(self, metric: np.ndarray, floor: float, n_hyp: int, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
@@ -450,14 +492,15 @@ class ToAEstimator:
         t = cs.block_times
         a_n = cs.num_ant
         dof = float(2 * a_n if noise_dof is None else np.clip(noise_dof, 2.0, 2 * a_n))
-        idx, lags, n_up = self._grid(cs, cfg.upsample)
-        step = 1.0 / (n_up * cs.bin_spacing_hz)
+        layout = self._layout(cs)
+        grid = layout.grid
+        idx, lags, n_up, step = grid.idx, grid.lags, grid.size, grid.step
         tc = t - t.mean()
         # 1. Doppler scan on the unwindowed metric (on the grid without zero padding: the
         #    straddle loss is common to every Doppler hypothesis)
         if cfg.doppler_max_hz > 0:
-            nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
-            idx1, lags1, n1 = self._grid(cs, 1)
+            nus = self.hypotheses
+            idx1, lags1, n1 = layout.scan.idx, layout.scan.lags, layout.scan.size
             g_nu = self.doppler_spectra(cs, nus, tc)                                  # [V, A, K]
             metric = self.lag_power(g_nu, idx1, lags1, n1).max(axis=-1)
             i = int(np.argmax(metric))
@@ -495,7 +538,7 @@ class ToAEstimator:
         nv = max(float(noise_var), 0.0)
         sum_ref = float(np.sum(cs.ref_power))
         floor_rect = a_n * nv * sum_ref
-        cfar = float(np.median(m_rect)) * dof / chdtri(dof, 0.5)
+        cfar = _median(m_rect) * dof / chdtri(dof, 0.5)
         if cfar > floor_rect and sum_ref > 0:
             floor_rect, nv = cfar, cfar / (a_n * sum_ref)
         peak = float(m_rect.max())
@@ -506,39 +549,38 @@ class ToAEstimator:
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
             scan = _DopplerScan(g_nu, nus) if cfg.doppler_max_hz > 0 else None
-            tau, d = self._pick(cs, _LagGrid(idx, lags, n_up, step), m_rect, scan,
-                                _Derotated(nu, rot, g), tc, nv, dof)
+            tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
             tau = float(lags[int(np.argmax(m_rect))] * step)
+        e = np.exp(2j * np.pi * cs.freqs * tau)              # [K], the exact profile's phase ramp
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db),
-                           peak=self._eval(g, cs.freqs, tau), snapshots=cs.at_delay(tau) * rot,
-                           noise_var=nv)
+                           peak=g @ e, snapshots=cs.at_delay(tau, e) * rot, noise_var=nv)
 
-    def _pick(self, cs: CrossSpectra, grid: _LagGrid, m_rect: np.ndarray, scan: _DopplerScan | None,
+    def _pick(self, cs: CrossSpectra, layout: _Layout, m_rect: np.ndarray, scan: _DopplerScan | None,
               start: _Derotated, tc: np.ndarray, nv: float, dof: float) -> tuple[float, _Derotated]:
         """Steps 4 and 5 for a detected BS: the ToA, and the derotation (Doppler, block phases,
         combined spectra), ``start`` or, when the first path's own Doppler replaces the scan's,
         the first path's.
 
-        :param grid: the zero-padded profile's grid; m_rect: [L] float64, its unwindowed power
+        :param layout: the bins' grids and window; m_rect: [L] float64, the zero-padded
+            profile's unwindowed power
         :param scan: the Doppler scan (None without one)
         :param tc: [B] float64, s, block times about their mean; nv: per-RE noise variance;
             dof: the noise's chi-square degrees of freedom
         """
         cfg = self.cfg
         a_n = cs.num_ant
-        idx, lags, n_up, step = grid.idx, grid.lags, grid.size, grid.step
+        idx, lags, n_up, step = layout.grid.idx, layout.grid.lags, layout.grid.size, layout.grid.step
         nu, rot, g = start.doppler_hz, start.rot, start.combined
         g_nu, nus = (scan.spectra, scan.hypotheses) if scan is not None else (None, None)
         # 4. ToA rule
+        win = layout.win                                        # [K], ones for "strongest"
         if cfg.toa_method == "strongest":
-            win = np.ones(cs.freqs.shape)
             metric = m_rect
             i = int(np.argmax(metric))
         else:
-            win = self._window(cs, cfg.first_path_window)
             floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
             if cfg.doppler_max_hz > 0:
                 # delay-Doppler map (on the zero-padded grid: a coarse one was measured to lose
@@ -547,7 +589,7 @@ class ToAEstimator:
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
                 idx1, lags1, n1 = idx, lags, n_up
-                dmap = self.lag_power(g_nu, idx1, lags1, n1, win.astype(np.float32))  # [V, L1]
+                dmap = self.lag_power(g_nu, idx1, lags1, n1, layout.win32)  # [V, L1]
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
