@@ -80,6 +80,12 @@ class CrossSpectra:
         return (self.spectra if self.spectra is not None else self.parts[0][2]).shape[0]
 
     @cached_property
+    def bin_power(self) -> np.ndarray:
+        """[num_bins] float64, ``ref_power`` summed over the blocks (the noise floor of a
+        windowed profile is sigma^2 sum_k w_k^2 bin_power[k] per antenna)."""
+        return self.ref_power.sum(axis=0)
+
+    @cached_property
     def dense(self) -> np.ndarray:
         """[num_ant, num_blocks, num_bins] complex128, the spectra with their zeros."""
         if self.spectra is not None:
@@ -172,12 +178,16 @@ class _LagGrid:
 class _Layout:
     """What :class:`ToAEstimator` derives from the bins alone (kept per bin layout, read-only):
     grid : the upsampled profile's :class:`_LagGrid`; scan : the Doppler scan's (no zero
-    padding); win : [K] float64, the first-path window; win32 : [K] float32, the same."""
+    padding); win : [K] float64, the first-path window; win32 : [K] float32, the same; win2 :
+    [K] float64, its square; shifts : [R, K, 3] complex128, e^{j2pi f_k s} for the shifts
+    s = -h_r, 0, h_r of the R refinement steps (h_r = step / 4^(r+1))."""
 
     grid: _LagGrid
     scan: _LagGrid
     win: np.ndarray
     win32: np.ndarray
+    win2: np.ndarray
+    shifts: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -288,17 +298,22 @@ class ZoomPlan:
     with h(d) = e^{-j pi d^2 / N}, d in [-(P - 1), M - 1], done by FFTs of a length L >= P + M - 1
     (Bluestein, IEEE Trans. Audio Electroacoust. 18(4), 1970; Rabiner, Schafer and Rader, "The
     chirp z-transform algorithm", ibid. 17(2), 1969). Two FFTs of L instead of one of N: with the
-    searched window a fifth of the period (N = 4096, P = 624, M = 754: L = 1386) about a third
+    searched window a fifth of the period (N = 4096, P = 624, M = 755: L = 1440) about a third
     less work. The factor e^{j pi m^2 / N} has modulus 1 and drops out of |c(l)|^2.
 
     :param pos: [K] int64, the bins' positions p_k; l0, m: the first lag and the number of lags;
         n: the grid size N; dtype: complex64 or complex128 (the transforms' precision)
+    :param size: the length L (default :func:`fft_length` of P + M - 1); every L >= P + M - 1
+        gives the same values up to rounding, a shorter one aliases the convolution
     """
 
-    def __init__(self, pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype):
+    def __init__(self, pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype,
+                 size: int | None = None):
         p_n = int(pos.max()) + 1
         self.pos, self.m, self.dtype = pos, m, dtype
-        self.size = sfft.next_fast_len(p_n + m - 1)
+        self.size = fft_length(p_n + m - 1) if size is None else int(size)
+        if self.size < p_n + m - 1:
+            raise ValueError(f"size {self.size} is below P + M - 1 = {p_n + m - 1}")
         self.contiguous = bool(pos[0] == 0 and np.all(np.diff(pos) == 1))
 
         def chirp(x):   # e^{j pi x^2 / N}, with x^2 reduced mod 2N in integers (exact phase)
@@ -328,6 +343,18 @@ class ZoomPlan:
         return _antenna_power(y[..., :self.m])
 
 
+def fft_length(n: int) -> int:
+    """The chirp-z transforms' length for a linear convolution of n outputs: the smallest
+    5-smooth length >= n (``scipy.fft.next_fast_len(n, real=True)``).
+
+    Any length >= n gives the same convolution (to rounding); the 5-smooth ones run on
+    pocketfft's radix-4, 2, 3 and 5 passes only. ``next_fast_len(n)`` also admits factors 7 and
+    11, whose passes cost more per element: for the chain's grid (n = 1378) it picks
+    2 3^2 7 11 = 1386, which was measured slower than 2^5 3^2 5 = 1440 (docs/performance.md).
+    """
+    return sfft.next_fast_len(n, real=True)
+
+
 #: chirp-z plans by (bins, first lag, lags, grid size, dtype)
 _ZOOM_PLANS: dict = {}
 
@@ -336,7 +363,7 @@ def zoom_plan(pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype) -> Zoom
     """The :class:`ZoomPlan` of these bins and lags (kept), or None when one FFT of the whole
     grid costs less (cost ~ L log2 L per FFT: two of the chirp-z length against one of N)."""
     def make():
-        size = sfft.next_fast_len(int(pos.max()) + m)
+        size = fft_length(int(pos.max()) + m)
         cheaper = 2 * size * np.log2(size) < 0.8 * n * np.log2(n)
         return ZoomPlan(pos, l0, m, n, dtype) if cheaper else None
 
@@ -397,10 +424,14 @@ class ToAEstimator:
         def make():
             win = (self._window(cs, self.cfg.first_path_window) if self.cfg.toa_method != "strongest"
                    else np.ones(cs.freqs.shape))
-            win32 = win.astype(np.float32)
-            for a in (win, win32):
+            grid = self._grid(cs, self.cfg.upsample)
+            h = grid.step / 4.0 ** np.arange(1, self.cfg.refine_steps + 1)              # [R], s
+            shifts = np.exp(2j * np.pi * cs.freqs[None, :, None]
+                            * (h[:, None, None] * np.array([-1.0, 0.0, 1.0])))          # [R, K, 3]
+            arrays = (win, win.astype(np.float32), win ** 2, shifts)
+            for a in arrays:
                 a.flags.writeable = False
-            return _Layout(self._grid(cs, self.cfg.upsample), self._grid(cs, 1), win, win32)
+            return _Layout(grid, self._grid(cs, 1), *arrays)
 
         return kept(self._layouts, (cs.freqs.tobytes(), cs.bin_spacing_hz, cs.band_hz), make)
 
@@ -536,7 +567,7 @@ class ToAEstimator:
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
         dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups]))
         nv = max(float(noise_var), 0.0)
-        sum_ref = float(np.sum(cs.ref_power))
+        sum_ref = float(np.sum(cs.bin_power))
         floor_rect = a_n * nv * sum_ref
         cfar = _median(m_rect) * dof / chdtri(dof, 0.5)
         if cfar > floor_rect and sum_ref > 0:
@@ -581,7 +612,7 @@ class ToAEstimator:
             metric = m_rect
             i = int(np.argmax(metric))
         else:
-            floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
+            floor = a_n * nv * float(cs.bin_power @ layout.win2)
             if cfg.doppler_max_hz > 0:
                 # delay-Doppler map (on the zero-padded grid: a coarse one was measured to lose
                 # accuracy on UMa fast fading, p50 12.6 -> 17.8 m): paths of one link can
@@ -614,12 +645,13 @@ class ToAEstimator:
             tau = (lags[i] + _parabola(*metric[i - 1:i + 2])) * step
         else:
             tau = lags[i] * step
+        # the profile sum_a |c_a(tau + s)|^2 at s = -h, 0, h is sum_a |sum_k u_ak e^{j2pi f_k s}|^2
+        # with u = g w e^{j2pi f tau}: one exp and one product [A, K] @ [K, 3] per step
         gw = g * win
         h = step / 4
-        for _ in range(cfg.refine_steps):
-            # the three profiles' phase ramps from one exp call (the same values as three)
-            e = np.exp((2j * np.pi * cs.freqs)[None, :] * np.array([tau - h, tau, tau + h])[:, None])
-            vals = [float(np.sum(np.abs(gw @ e[j]) ** 2)) for j in range(3)]     # e: [3, K]
+        for shift in layout.shifts:                                                # [K, 3]
+            c = (gw * np.exp(2j * np.pi * cs.freqs * tau)) @ shift                 # [A, 3]
+            vals = _antenna_power(c)                                               # [3]
             tau += h * _parabola(*vals)
             h /= 4
         return tau, _Derotated(nu, rot, g)
