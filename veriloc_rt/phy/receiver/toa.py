@@ -31,6 +31,7 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 from functools import cached_property
@@ -44,6 +45,10 @@ from ..channel import as_slice, kept, occupancy_groups
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
+
+
+#: :func:`as_slice` of the groups' bins by their bytes (a chain's combs are the same at every call)
+_SLICES: dict = {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,7 +124,7 @@ class CrossSpectra:
     def bin_index(self) -> tuple:
         """Per group of :attr:`groups`, its bins as an index: a slice when they are evenly
         spaced (a comb), else the index array (a slice scatters several times faster)."""
-        return tuple(as_slice(bins) for _, bins, _ in self.groups)
+        return tuple(kept(_SLICES, bins.tobytes(), lambda: as_slice(bins)) for _, bins, _ in self.groups)
 
     def combine(self, weights: np.ndarray) -> np.ndarray:
         """sum_b w_b S_abk: [B] -> [A, K] complex128."""
@@ -225,7 +230,7 @@ def _workspace(name: str, shape: tuple, dtype) -> np.ndarray:
     if store is None:
         store = _WORK.arrays = {}
     dtype = np.dtype(dtype)
-    size = int(np.prod(shape))
+    size = math.prod(shape)
     a = store.get(name)
     if a is None or a.dtype != dtype or a.size < size:
         a = store[name] = np.empty(size, dtype=dtype)
@@ -339,8 +344,8 @@ class ZoomPlan:
             buf[..., self.pos] = g * pre
         x = sfft.fft(buf, axis=-1, overwrite_x=True)
         x *= self.filter
-        y = sfft.ifft(x, axis=-1, overwrite_x=True)
-        return _antenna_power(y[..., :self.m])
+        y = sfft.ifft(x, axis=-1, overwrite_x=True)                # the work array, or a new one
+        return _antenna_power(y[..., :self.m], scratch=True)
 
 
 def fft_length(n: int) -> int:
@@ -370,15 +375,23 @@ def zoom_plan(pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype) -> Zoom
     return kept(_ZOOM_PLANS, (pos.tobytes(), l0, m, n, dtype.str), make)
 
 
-def _antenna_power(q: np.ndarray) -> np.ndarray:
+def _antenna_power(q: np.ndarray, scratch: bool = False) -> np.ndarray:
     """sum_a |q_a|^2 over the antenna axis -2: [..., A, L] complex -> [..., L] float64.
 
     |q|^2 in q's precision (re^2 + im^2), summed over the antennas in float64, in place of
     ``np.sum(q.real ** 2 + q.imag ** 2, axis=-2, dtype=np.float64)`` (the same values) without
     its two temporaries.
+
+    :param scratch: q (contiguous along L) may be overwritten: the squares are taken in place
+        on its interleaved (re, im) pairs, without the strided reads of ``q.real``
     """
-    s = np.square(q.real)
-    s += np.square(q.imag)
+    if scratch:
+        v = q.view(q.real.dtype)                                      # [..., A, 2 L]
+        np.square(v, out=v)
+        s = v[..., 0::2] + v[..., 1::2]
+    else:
+        s = np.square(q.real)
+        s += np.square(q.imag)
     return np.sum(s, axis=-2, dtype=np.float64)
 
 
@@ -471,7 +484,7 @@ class ToAEstimator:
         # the lags -lo..hi-1 are two runs of the FFT's output: slices, no gather (4x faster)
         out = np.empty(p.shape[:-2] + (lags.size,))
         for q, part in ((p[..., n_up - lo:], slice(0, lo)), (p[..., :hi], slice(lo, None))):
-            out[..., part] = _antenna_power(q)
+            out[..., part] = _antenna_power(q, scratch=True)   # disjoint runs of the work array
         return out
 
     @staticmethod
