@@ -19,7 +19,7 @@ from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.phy.transmitter import PRSTransmitter
 from veriloc_rt.phy.receiver.sync import (frequency_cross_spectra, noise_variance,
                                           time_cross_spectra)
-from veriloc_rt.phy.receiver.toa import ToAEstimator, ZoomPlan, fft_length, zoom_plan
+from veriloc_rt.phy.receiver.toa import CrossSpectra, ToAEstimator, ZoomPlan, fft_length, zoom_plan
 from veriloc_rt.config.security import SecurityConfig
 
 GUARD = 0.25e-6
@@ -348,3 +348,28 @@ def test_chirp_z_gives_the_dft_at_any_length_above_the_linear_convolution(extra)
         np.testing.assert_allclose(plan.power(g, w), want, rtol=1e-9, atol=1e-9 * want.max())
     with pytest.raises(ValueError, match="below P \\+ M - 1"):
         ZoomPlan(pos, l0, m, n, np.dtype(np.complex128), 624 + m - 2)
+
+
+def test_doppler_spectra_add_up_groups_whose_bins_overlap():
+    """Blocks whose occupancy differs but overlaps (all bins, the even bins, two bins in three)
+    form groups sharing bins: the Doppler spectra add the groups' products there (they were
+    overwritten by the last group). Second method: the dense product over every block and bin
+    (ref_power all ones: one group); tolerance: single precision, 1e-6 of the largest entry as
+    above. The block combination is checked the same way in double precision (1e-12)."""
+    rng = np.random.default_rng(21)
+    a_n, b_n, k_n = 2, 4, 12
+    ref = np.ones((b_n, k_n))
+    ref[1, 1::2] = 0
+    ref[3, ::3] = 0
+    spectra = (rng.standard_normal((a_n, b_n, k_n)) + 1j * rng.standard_normal((a_n, b_n, k_n))) * (ref > 0)
+    cs = CrossSpectra(spectra, np.arange(k_n) * 15e3, 15e3, np.arange(b_n) * 1e-3, ref, k_n * 15e3)
+    assert len(cs.groups) == 3 and cs.bins_overlap
+    flat = dataclasses.replace(cs, ref_power=np.ones_like(ref))
+    assert len(flat.groups) == 1 and not flat.bins_overlap
+    nus = np.arange(-50.0, 51.0, 25.0)
+    tc = cs.block_times - cs.block_times.mean()
+    want = ToAEstimator.doppler_spectra(flat, nus, tc)
+    np.testing.assert_allclose(ToAEstimator.doppler_spectra(cs, nus, tc), want, rtol=0,
+                               atol=1e-6 * np.abs(want).max())
+    w = np.exp(1j * rng.uniform(0, 2 * np.pi, b_n))
+    np.testing.assert_allclose(cs.combine(w), flat.combine(w), rtol=0, atol=1e-12 * np.abs(flat.combine(w)).max())
