@@ -31,7 +31,6 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
 
 from __future__ import annotations
 
-import math
 import threading
 from dataclasses import dataclass
 from functools import cached_property
@@ -50,7 +49,8 @@ __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
 #: :func:`as_slice` of the groups' bins by their bytes (a chain's combs are the same at every call)
 _SLICES: dict = {}
 
-#: whether groups' bins overlap, by the groups' bins (the same at every call of a chain)
+#: whether groups' bins overlap and cover every bin, by the groups' bins (the same at every
+#: call of a chain)
 _OVERLAPS: dict = {}
 
 
@@ -130,18 +130,28 @@ class CrossSpectra:
         return tuple(kept(_SLICES, bins.tobytes(), lambda: as_slice(bins)) for _, bins, _ in self.groups)
 
     @cached_property
-    def bins_overlap(self) -> bool:
-        """Some bin belongs to more than one group of :attr:`groups` (blocks with different but
-        overlapping occupancy: their products add up on the shared bins)."""
+    def _cover(self) -> tuple[bool, bool]:
+        """(some bin in more than one group, every bin in a group) for :attr:`groups`."""
         bins = [b for _, b, _ in self.groups]
 
         def make():
             cover = np.zeros(self.freqs.size, dtype=np.int64)
             for b in bins:
                 cover[b] += 1
-            return bool(np.any(cover > 1))
+            return bool(np.any(cover > 1)), bool(np.all(cover > 0))
 
-        return kept(_OVERLAPS, tuple(b.tobytes() for b in bins), make)
+        return kept(_OVERLAPS, (self.freqs.size,) + tuple(b.tobytes() for b in bins), make)
+
+    @property
+    def bins_overlap(self) -> bool:
+        """Some bin belongs to more than one group of :attr:`groups` (blocks with different but
+        overlapping occupancy: their products add up on the shared bins)."""
+        return self._cover[0]
+
+    @property
+    def bins_covered(self) -> bool:
+        """Every bin belongs to some group of :attr:`groups` (else some bins stay zero)."""
+        return self._cover[1]
 
     def combine(self, weights: np.ndarray) -> np.ndarray:
         """sum_b w_b S_abk: [B] -> [A, K] complex128."""
@@ -215,7 +225,8 @@ class _Layout:
 @dataclass(frozen=True, eq=False)
 class _DopplerScan:
     """The Doppler scan of step 1: spectra [V, A, K] complex64 (sum_b e^{-j2pi nu t_b} S_abk per
-    hypothesis), hypotheses [V] float64, Hz."""
+    hypothesis; possibly a view of the thread's transform input, valid within the call),
+    hypotheses [V] float64, Hz."""
 
     spectra: np.ndarray
     hypotheses: np.ndarray
@@ -231,27 +242,40 @@ class _Derotated:
     combined: np.ndarray
 
 
-#: per-thread work arrays of :func:`_workspace` (a chain may run in several threads of a Dask
+#: per-thread transform inputs of :func:`_padded` (a chain may run in several threads of a Dask
 #: worker)
 _WORK = threading.local()
 
+#: the most inputs :func:`_padded` keeps per thread (a chain uses a handful of shapes)
+_PADDED_MAX = 32
 
-def _workspace(name: str, shape: tuple, dtype) -> np.ndarray:
-    """A work array of ``shape`` and ``dtype`` kept from call to call (contents undefined).
 
-    The zero-padded delay profiles are megabytes (33 Doppler hypotheses x 5 antennas x 4096
-    lags); allocated afresh at every call (scipy's zero padding) they were page-faulted in
-    and returned each time. One array per name, grown as needed, viewed at the asked shape.
+def _padded(name: str, shape: tuple, dtype, head: int) -> np.ndarray:
+    """A zero-padded transform input of ``shape`` and ``dtype`` kept from call to call: zero
+    beyond the first ``head`` entries of the last axis, contents undefined within them.
+
+    Callers write only the head (or zero it before scattering into it) and transform out of
+    place, so the padding is zeroed once, when the array is made, instead of at every call (the
+    zero-padded profiles are megabytes: 33 Doppler hypotheses x 5 antennas x 1440 or 1024
+    lags). One array per (name, shape, dtype, head).
     """
-    store = getattr(_WORK, "arrays", None)
+    store = getattr(_WORK, "padded", None)
     if store is None:
-        store = _WORK.arrays = {}
+        store = _WORK.padded = {}
     dtype = np.dtype(dtype)
-    size = math.prod(shape)
-    a = store.get(name)
-    if a is None or a.dtype != dtype or a.size < size:
-        a = store[name] = np.empty(size, dtype=dtype)
-    return a[:size].reshape(shape)
+    key = (name, tuple(shape), dtype.str, int(head))
+    a = store.get(key)
+    if a is None:
+        if len(store) >= _PADDED_MAX:
+            store.clear()
+        a = store[key] = np.zeros(shape, dtype=dtype)
+    return a
+
+
+def _is_view(a: np.ndarray, b: np.ndarray) -> bool:
+    """``a`` is ``b`` (the same memory, shape and strides): already where it would be copied."""
+    return (a.shape == b.shape and a.strides == b.strides
+            and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
 
 
 def spatial_dof(x: np.ndarray) -> float:
@@ -332,7 +356,7 @@ class ZoomPlan:
     def __init__(self, pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype,
                  size: int | None = None):
         p_n = int(pos.max()) + 1
-        self.pos, self.m, self.dtype = pos, m, dtype
+        self.pos, self.m, self.dtype, self.p_n = pos, m, dtype, p_n
         self.size = fft_length(p_n + m - 1) if size is None else int(size)
         if self.size < p_n + m - 1:
             raise ValueError(f"size {self.size} is below P + M - 1 = {p_n + m - 1}")
@@ -352,16 +376,15 @@ class ZoomPlan:
     def power(self, g: np.ndarray, win: np.ndarray | None) -> np.ndarray:
         """sum_a |c_a(l)|^2 of g [..., A, K] (times ``win`` [K] per bin): [..., M] float64."""
         pre = self.pre if win is None else self.pre * win
-        buf = _workspace("zoom", g.shape[:-1] + (self.size,), self.dtype)
+        buf = _padded("zoom", g.shape[:-1] + (self.size,), self.dtype, self.p_n)
         if self.contiguous:
             np.multiply(g, pre, out=buf[..., :self.pos.size])
-            buf[..., self.pos.size:] = 0
         else:
-            buf[...] = 0
+            buf[..., :self.p_n] = 0
             buf[..., self.pos] = g * pre
-        x = sfft.fft(buf, axis=-1, overwrite_x=True)
+        x = sfft.fft(buf, axis=-1)                       # out of place: buf's padding stays zero
         x *= self.filter
-        y = sfft.ifft(x, axis=-1, overwrite_x=True)                # the work array, or a new one
+        y = sfft.ifft(x, axis=-1, overwrite_x=True)
         return _antenna_power(y[..., :self.m], scratch=True)
 
 
@@ -477,24 +500,26 @@ class ToAEstimator:
 
         :param win: [num_bins] real, a per-bin window applied on the way into the FFT's buffer
             (the same values as transforming ``g * win``, without the product's own array)
+
+        ``g`` may already be the head of the zero-padded input (:meth:`padded_input`, which
+        :meth:`doppler_spectra` can write into): it is then transformed where it is.
         """
         dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
         pos = idx - idx.min()
         plan = zoom_plan(pos, int(lags[0]), lags.size, n_up, np.dtype(dtype))
         if plan is not None and lags[-1] - lags[0] == lags.size - 1:
             return plan.power(g, win)
-        buf = _workspace("profile", g.shape[:-1] + (n_up,), dtype)   # zero-padded, then in place
+        buf = _padded("profile", g.shape[:-1] + (n_up,), dtype, int(pos.max()) + 1)
         if pos[-1] == pos.size - 1 and np.all(np.diff(pos) == 1):
             head = buf[..., :pos.size]
-            if win is None:
-                head[...] = g
-            else:
+            if win is not None:
                 np.multiply(g, win, out=head)
-            buf[..., pos.size:] = 0
+            elif not _is_view(g, head):
+                head[...] = g
         else:
-            buf[...] = 0
+            buf[..., :int(pos.max()) + 1] = 0
             buf[..., pos] = g if win is None else g * win
-        p = sfft.ifft(buf, axis=-1, overwrite_x=True, norm="forward")
+        p = sfft.ifft(buf, axis=-1, norm="forward")      # out of place: buf's padding stays zero
         lo, hi = -int(lags[0]), int(lags[-1]) + 1
         if not (0 <= lo and hi <= n_up - lo and lags.size == lo + hi):   # not one wrapped run
             return _antenna_power(p[..., lags % n_up])
@@ -505,7 +530,18 @@ class ToAEstimator:
         return out
 
     @staticmethod
-    def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
+    def padded_input(lead: tuple, idx: np.ndarray, n_up: int, dtype) -> np.ndarray | None:
+        """The zero-padded input [*lead, n_up] of :meth:`lag_power`'s full-grid transform when
+        the bins (grid indices ``idx`` [K]) are contiguous, else None: kept per thread, zero
+        beyond the first K entries, contents undefined within them."""
+        pos = idx - idx.min()
+        if not (pos[-1] == pos.size - 1 and np.all(np.diff(pos) == 1)):
+            return None
+        return _padded("profile", tuple(lead) + (n_up,), dtype, pos.size)
+
+    @staticmethod
+    def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray,
+                        out: np.ndarray | None = None) -> np.ndarray:
         """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
         Single precision: the maps built from it only rank hypotheses and cells against
@@ -516,10 +552,16 @@ class ToAEstimator:
         product per group of blocks sharing their bins: a comb-6 PRS needs 1/6 of the dense
         product's work (summing block by block instead was measured 6x slower). Groups whose
         bins overlap add up on the shared bins; disjoint ones (a comb) are written in place.
+
+        :param out: [V, A, K] complex64 to write into (e.g. the head of :meth:`padded_input`),
+            else a new array
         """
         rot = _doppler_rotations(nus, tc)                                             # [V, B]
         a_ = cs.num_ant
-        out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
+        if out is None:
+            out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
+        elif cs.bins_overlap or not cs.bins_covered:
+            out[...] = 0
         for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
             q = np.empty((blocks.size, a_, bins.size), dtype=np.complex64)   # [B_g, A, K_g]
             q[...] = part.transpose(1, 0, 2)                                  # cast and reorder in one pass
@@ -567,7 +609,9 @@ class ToAEstimator:
         if cfg.doppler_max_hz > 0:
             nus = self.hypotheses
             idx1, lags1, n1 = layout.scan.idx, layout.scan.lags, layout.scan.size
-            g_nu = self.doppler_spectra(cs, nus, tc)                                  # [V, A, K]
+            # contiguous bins: the spectra written straight into the scan transform's input
+            pad = self.padded_input((nus.size, a_n), idx1, n1, np.complex64)
+            g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
             metric = self.lag_power(g_nu, idx1, lags1, n1).max(axis=-1)
             i = int(np.argmax(metric))
             nu = float(nus[i])
