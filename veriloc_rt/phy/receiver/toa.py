@@ -496,7 +496,9 @@ class ToAEstimator:
 
         Only the power is used, so the bins are transformed from the lowest one at index 0: that
         multiplies every profile by one phase ramp over the lags, invisible in |.|^2, and for
-        contiguous bins (the frequency front end) the zero padding is the FFT's own.
+        contiguous bins (the frequency front end) the input is the bins followed by zeros. A
+        contiguous window of lags short enough goes through the chirp-z plan
+        (:func:`zoom_plan`), else one FFT of the whole grid.
 
         :param win: [num_bins] real, a per-bin window applied on the way into the FFT's buffer
             (the same values as transforming ``g * win``, without the product's own array)
