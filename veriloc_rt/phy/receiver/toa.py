@@ -295,10 +295,10 @@ def spatial_dof(x: np.ndarray) -> float:
     blocks = [x] if isinstance(x, np.ndarray) else list(x)
     a = blocks[0].shape[0]
     r = sum(b @ b.conj().T for b in blocks)          # [A, A]; the 1/N scale cancels in the ratio
-    tr = float(np.trace(r).real)
+    tr = float(r.trace().real)
     if tr <= 0:
         return 2.0 * a
-    return float(np.clip(2.0 * tr ** 2 / float(np.sum(np.abs(r) ** 2)), 2.0, 2.0 * a))
+    return float(_clip(2.0 * tr ** 2 / float((np.abs(r) ** 2).sum()), 2.0, 2.0 * a))
 
 
 def _median(x: np.ndarray) -> float:
@@ -312,12 +312,17 @@ def _median(x: np.ndarray) -> float:
     return float((part[k - 1] + part[k]) / 2)
 
 
+def _clip(x, lo, hi):
+    """``np.clip`` of a scalar (the same value, NaN kept) without the array machinery."""
+    return min(max(x, lo), hi)
+
+
 def _parabola(ym: float, y0: float, yp: float) -> float:
     """Vertex offset in [-1, 1] of the parabola through (-1, ym), (0, y0), (1, yp)."""
     den = ym - 2.0 * y0 + yp
     if den >= 0 or not np.isfinite(den):
         return 0.0
-    return float(np.clip(0.5 * (ym - yp) / den, -1.0, 1.0))
+    return float(_clip(0.5 * (ym - yp) / den, -1.0, 1.0))
 
 
 #: the Doppler scan's rotations by (hypotheses, block times): one chain's blocks and
@@ -432,7 +437,7 @@ def _antenna_power(q: np.ndarray, scratch: bool = False) -> np.ndarray:
     else:
         s = np.square(q.real)
         s += np.square(q.imag)
-    return np.sum(s, axis=-2, dtype=np.float64)
+    return s.sum(axis=-2, dtype=np.float64)
 
 
 class ToAEstimator:
@@ -583,7 +588,7 @@ class ToAEstimator:
         gamma = chdtri(dof, self.cfg.false_alarm / n_hyp) / dof
         thr = max(gamma * floor, metric.max() * 10 ** (-self.cfg.first_path_rel_db / 10))
         above = np.flatnonzero(metric >= thr)
-        i = int(above[0]) if above.size else int(np.argmax(metric))
+        i = int(above[0]) if above.size else int(metric.argmax())
         while i + 1 < metric.size and metric[i + 1] > metric[i]:
             i += 1
         return i
@@ -601,7 +606,7 @@ class ToAEstimator:
         cfg = self.cfg
         t = cs.block_times
         a_n = cs.num_ant
-        dof = float(2 * a_n if noise_dof is None else np.clip(noise_dof, 2.0, 2 * a_n))
+        dof = float(2 * a_n if noise_dof is None else _clip(float(noise_dof), 2.0, 2 * a_n))
         layout = self._layout(cs)
         grid = layout.grid
         idx, lags, n_up, step = grid.idx, grid.lags, grid.size, grid.step
@@ -615,7 +620,7 @@ class ToAEstimator:
             pad = self.padded_input((nus.size, a_n), idx1, n1, np.complex64)
             g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
             metric = self.lag_power(g_nu, idx1, lags1, n1).max(axis=-1)
-            i = int(np.argmax(metric))
+            i = int(metric.argmax())
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
@@ -625,15 +630,15 @@ class ToAEstimator:
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
         m_rect = self.lag_power(g, idx, lags, n_up)
-        tau_pk = float(lags[int(np.argmax(m_rect))] * step)
+        tau_pk = float(lags[int(m_rect.argmax())] * step)
         x = cs.at_delay(tau_pk) * rot                                              # [A, B]
-        ref = np.sum(x, axis=1)
-        z = np.sum(x * np.conj(ref)[:, None], axis=0)                              # [B]
+        ref = x.sum(axis=1)
+        z = (x * ref.conj()[:, None]).sum(axis=0)                                # [B]
         w = np.abs(z)
-        if cfg.doppler_max_hz > 0 and np.sum(w) > 0:
+        if cfg.doppler_max_hz > 0 and w.sum() > 0:
             ph = np.angle(z)
-            tw = np.sum(w * tc) / np.sum(w)
-            slope = np.sum(w * (tc - tw) * ph) / max(np.sum(w * (tc - tw) ** 2), 1e-30)
+            tw = (w * tc).sum() / w.sum()
+            slope = (w * (tc - tw) * ph).sum() / max((w * (tc - tw) ** 2).sum(), 1e-30)
             dnu = slope / (2 * np.pi)
             if abs(dnu) <= cfg.doppler_step_hz:
                 nu += dnu
@@ -648,7 +653,7 @@ class ToAEstimator:
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
         dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups]))
         nv = max(float(noise_var), 0.0)
-        sum_ref = float(np.sum(cs.bin_power))
+        sum_ref = float(cs.bin_power.sum())
         floor_rect = a_n * nv * sum_ref
         cfar = _median(m_rect) * dof / chdtri(dof, 0.5)
         if cfar > floor_rect and sum_ref > 0:
@@ -664,7 +669,7 @@ class ToAEstimator:
             tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
-            tau = float(lags[int(np.argmax(m_rect))] * step)
+            tau = float(lags[int(m_rect.argmax())] * step)
         e = np.exp(2j * np.pi * cs.freqs * tau)              # [K], the exact profile's phase ramp
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db),
@@ -691,7 +696,7 @@ class ToAEstimator:
         win = layout.win                                        # [K], ones for "strongest"
         if cfg.toa_method == "strongest":
             metric = m_rect
-            i = int(np.argmax(metric))
+            i = int(metric.argmax())
         else:
             floor = a_n * nv * float(cs.bin_power @ layout.win2)
             if cfg.doppler_max_hz > 0:
@@ -705,7 +710,7 @@ class ToAEstimator:
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
-                v = int(np.argmax(col))
+                v = int(col.argmax())
                 nu_fp = float(nus[v])
                 if 0 < v < nus.size - 1:
                     nu_fp += cfg.doppler_step_hz * _parabola(*col[v - 1:v + 2])
@@ -715,7 +720,7 @@ class ToAEstimator:
                     g = cs.combine(rot)
                 metric = self.lag_power(g, idx, lags, n_up, win)
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
-                i = int(np.clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
+                i = int(_clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
                 while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
                     i += 1 if metric[i + 1] > metric[i] else -1
             else:
