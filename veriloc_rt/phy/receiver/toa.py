@@ -46,6 +46,14 @@ from ...config.channel import ReceiverConfig
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
 
 
+#: :func:`as_slice` of the groups' bins by their bytes (a chain's combs are the same at every call)
+_SLICES: dict = {}
+
+#: whether groups' bins overlap and cover every bin, by the groups' bins (the same at every
+#: call of a chain)
+_OVERLAPS: dict = {}
+
+
 @dataclass(frozen=True, eq=False)
 class CrossSpectra:
     """Per-block, per-antenna cross-spectra of a received signal with one replica.
@@ -78,6 +86,12 @@ class CrossSpectra:
     @property
     def num_ant(self) -> int:
         return (self.spectra if self.spectra is not None else self.parts[0][2]).shape[0]
+
+    @cached_property
+    def bin_power(self) -> np.ndarray:
+        """[num_bins] float64, ``ref_power`` summed over the blocks (the noise floor of a
+        windowed profile is sigma^2 sum_k w_k^2 bin_power[k] per antenna)."""
+        return self.ref_power.sum(axis=0)
 
     @cached_property
     def dense(self) -> np.ndarray:
@@ -113,7 +127,31 @@ class CrossSpectra:
     def bin_index(self) -> tuple:
         """Per group of :attr:`groups`, its bins as an index: a slice when they are evenly
         spaced (a comb), else the index array (a slice scatters several times faster)."""
-        return tuple(as_slice(bins) for _, bins, _ in self.groups)
+        return tuple(kept(_SLICES, bins.tobytes(), lambda: as_slice(bins)) for _, bins, _ in self.groups)
+
+    @cached_property
+    def _cover(self) -> tuple[bool, bool]:
+        """(some bin in more than one group, every bin in a group) for :attr:`groups`."""
+        bins = [b for _, b, _ in self.groups]
+
+        def make():
+            cover = np.zeros(self.freqs.size, dtype=np.int64)
+            for b in bins:
+                cover[b] += 1
+            return bool(np.any(cover > 1)), bool(np.all(cover > 0))
+
+        return kept(_OVERLAPS, (self.freqs.size,) + tuple(b.tobytes() for b in bins), make)
+
+    @property
+    def bins_overlap(self) -> bool:
+        """Some bin belongs to more than one group of :attr:`groups` (blocks with different but
+        overlapping occupancy: their products add up on the shared bins)."""
+        return self._cover[0]
+
+    @property
+    def bins_covered(self) -> bool:
+        """Every bin belongs to some group of :attr:`groups` (else some bins stay zero)."""
+        return self._cover[1]
 
     def combine(self, weights: np.ndarray) -> np.ndarray:
         """sum_b w_b S_abk: [B] -> [A, K] complex128."""
@@ -122,12 +160,16 @@ class CrossSpectra:
             out[:, ix] += (weights[blocks][None, None, :] @ part)[:, 0, :]
         return out
 
-    def at_delay(self, tau: float) -> np.ndarray:
-        """Per-block correlation c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128."""
-        e = np.exp(2j * np.pi * self.freqs * tau)
+    def at_delay(self, tau: float, e: np.ndarray | None = None) -> np.ndarray:
+        """Per-block correlation c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128.
+
+        :param e: [K] complex128, e^{j2pi f_k tau} when the caller has it already
+        """
+        if e is None:
+            e = np.exp(2j * np.pi * self.freqs * tau)
         out = np.zeros((self.num_ant, self.ref_power.shape[0]), dtype=np.complex128)
         for (blocks, _, part), ix in zip(self.groups, self.bin_index):
-            out[:, blocks] = part @ e[ix]
+            out[:, blocks] = (part.reshape(-1, part.shape[-1]) @ e[ix]).reshape(part.shape[:2])
         return out
 
 
@@ -165,9 +207,26 @@ class _LagGrid:
 
 
 @dataclass(frozen=True, eq=False)
+class _Layout:
+    """What :class:`ToAEstimator` derives from the bins alone (kept per bin layout, read-only):
+    grid : the upsampled profile's :class:`_LagGrid`; scan : the Doppler scan's (no zero
+    padding); win : [K] float64, the first-path window; win32 : [K] float32, the same; win2 :
+    [K] float64, its square; shifts : [R, K, 3] complex128, e^{j2pi f_k s} for the shifts
+    s = -h_r, 0, h_r of the R refinement steps (h_r = step / 4^(r+1))."""
+
+    grid: _LagGrid
+    scan: _LagGrid
+    win: np.ndarray
+    win32: np.ndarray
+    win2: np.ndarray
+    shifts: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class _DopplerScan:
     """The Doppler scan of step 1: spectra [V, A, K] complex64 (sum_b e^{-j2pi nu t_b} S_abk per
-    hypothesis), hypotheses [V] float64, Hz."""
+    hypothesis; possibly a view of the thread's transform input, valid within the call),
+    hypotheses [V] float64, Hz."""
 
     spectra: np.ndarray
     hypotheses: np.ndarray
@@ -183,27 +242,40 @@ class _Derotated:
     combined: np.ndarray
 
 
-#: per-thread work arrays of :func:`_workspace` (a chain may run in several threads of a Dask
+#: per-thread transform inputs of :func:`_padded` (a chain may run in several threads of a Dask
 #: worker)
 _WORK = threading.local()
 
+#: the most inputs :func:`_padded` keeps per thread (a chain uses a handful of shapes)
+_PADDED_MAX = 32
 
-def _workspace(name: str, shape: tuple, dtype) -> np.ndarray:
-    """A work array of ``shape`` and ``dtype`` kept from call to call (contents undefined).
 
-    The zero-padded delay profiles are megabytes (33 Doppler hypotheses x 5 antennas x 4096
-    lags); allocated afresh at every call (scipy's zero padding) they were page-faulted in
-    and returned each time. One array per name, grown as needed, viewed at the asked shape.
+def _padded(name: str, shape: tuple, dtype, head: int) -> np.ndarray:
+    """A zero-padded transform input of ``shape`` and ``dtype`` kept from call to call: zero
+    beyond the first ``head`` entries of the last axis, contents undefined within them.
+
+    Callers write only the head (or zero it before scattering into it) and transform out of
+    place, so the padding is zeroed once, when the array is made, instead of at every call (the
+    zero-padded profiles are megabytes: 33 Doppler hypotheses x 5 antennas x 1440 or 1024
+    lags). One array per (name, shape, dtype, head).
     """
-    store = getattr(_WORK, "arrays", None)
+    store = getattr(_WORK, "padded", None)
     if store is None:
-        store = _WORK.arrays = {}
+        store = _WORK.padded = {}
     dtype = np.dtype(dtype)
-    size = int(np.prod(shape))
-    a = store.get(name)
-    if a is None or a.dtype != dtype or a.size < size:
-        a = store[name] = np.empty(size, dtype=dtype)
-    return a[:size].reshape(shape)
+    key = (name, tuple(shape), dtype.str, int(head))
+    a = store.get(key)
+    if a is None:
+        if len(store) >= _PADDED_MAX:
+            store.clear()
+        a = store[key] = np.zeros(shape, dtype=dtype)
+    return a
+
+
+def _is_view(a: np.ndarray, b: np.ndarray) -> bool:
+    """``a`` is ``b`` (the same memory, shape and strides): already where it would be copied."""
+    return (a.shape == b.shape and a.strides == b.strides
+            and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
 
 
 def spatial_dof(x: np.ndarray) -> float:
@@ -223,10 +295,26 @@ def spatial_dof(x: np.ndarray) -> float:
     blocks = [x] if isinstance(x, np.ndarray) else list(x)
     a = blocks[0].shape[0]
     r = sum(b @ b.conj().T for b in blocks)          # [A, A]; the 1/N scale cancels in the ratio
-    tr = float(np.trace(r).real)
+    tr = float(r.trace().real)
     if tr <= 0:
         return 2.0 * a
-    return float(np.clip(2.0 * tr ** 2 / float(np.sum(np.abs(r) ** 2)), 2.0, 2.0 * a))
+    return float(_clip(2.0 * tr ** 2 / float((np.abs(r) ** 2).sum()), 2.0, 2.0 * a))
+
+
+def _median(x: np.ndarray) -> float:
+    """Median of a 1-D array without NaNs: ``np.median``'s value (the middle element, or the mean
+    of the two middle ones) from one partition, without its checks and dispatch."""
+    n = x.size
+    k = n // 2
+    if n % 2:
+        return float(np.partition(x, k)[k])
+    part = np.partition(x, (k - 1, k))
+    return float((part[k - 1] + part[k]) / 2)
+
+
+def _clip(x, lo, hi):
+    """``np.clip`` of a scalar (the same value, NaN kept) without the array machinery."""
+    return min(max(x, lo), hi)
 
 
 def _parabola(ym: float, y0: float, yp: float) -> float:
@@ -234,7 +322,7 @@ def _parabola(ym: float, y0: float, yp: float) -> float:
     den = ym - 2.0 * y0 + yp
     if den >= 0 or not np.isfinite(den):
         return 0.0
-    return float(np.clip(0.5 * (ym - yp) / den, -1.0, 1.0))
+    return float(_clip(0.5 * (ym - yp) / den, -1.0, 1.0))
 
 
 #: the Doppler scan's rotations by (hypotheses, block times): one chain's blocks and
@@ -261,17 +349,22 @@ class ZoomPlan:
     with h(d) = e^{-j pi d^2 / N}, d in [-(P - 1), M - 1], done by FFTs of a length L >= P + M - 1
     (Bluestein, IEEE Trans. Audio Electroacoust. 18(4), 1970; Rabiner, Schafer and Rader, "The
     chirp z-transform algorithm", ibid. 17(2), 1969). Two FFTs of L instead of one of N: with the
-    searched window a fifth of the period (N = 4096, P = 624, M = 754: L = 1386) about a third
+    searched window a fifth of the period (N = 4096, P = 624, M = 755: L = 1440) about a third
     less work. The factor e^{j pi m^2 / N} has modulus 1 and drops out of |c(l)|^2.
 
     :param pos: [K] int64, the bins' positions p_k; l0, m: the first lag and the number of lags;
         n: the grid size N; dtype: complex64 or complex128 (the transforms' precision)
+    :param size: the length L (default :func:`fft_length` of P + M - 1); every L >= P + M - 1
+        gives the same values up to rounding, a shorter one aliases the convolution
     """
 
-    def __init__(self, pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype):
+    def __init__(self, pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype,
+                 size: int | None = None):
         p_n = int(pos.max()) + 1
-        self.pos, self.m, self.dtype = pos, m, dtype
-        self.size = sfft.next_fast_len(p_n + m - 1)
+        self.pos, self.m, self.dtype, self.p_n = pos, m, dtype, p_n
+        self.size = fft_length(p_n + m - 1) if size is None else int(size)
+        if self.size < p_n + m - 1:
+            raise ValueError(f"size {self.size} is below P + M - 1 = {p_n + m - 1}")
         self.contiguous = bool(pos[0] == 0 and np.all(np.diff(pos) == 1))
 
         def chirp(x):   # e^{j pi x^2 / N}, with x^2 reduced mod 2N in integers (exact phase)
@@ -288,17 +381,28 @@ class ZoomPlan:
     def power(self, g: np.ndarray, win: np.ndarray | None) -> np.ndarray:
         """sum_a |c_a(l)|^2 of g [..., A, K] (times ``win`` [K] per bin): [..., M] float64."""
         pre = self.pre if win is None else self.pre * win
-        buf = _workspace("zoom", g.shape[:-1] + (self.size,), self.dtype)
+        buf = _padded("zoom", g.shape[:-1] + (self.size,), self.dtype, self.p_n)
         if self.contiguous:
             np.multiply(g, pre, out=buf[..., :self.pos.size])
-            buf[..., self.pos.size:] = 0
         else:
-            buf[...] = 0
+            buf[..., :self.p_n] = 0
             buf[..., self.pos] = g * pre
-        x = sfft.fft(buf, axis=-1, overwrite_x=True)
+        x = sfft.fft(buf, axis=-1)                       # out of place: buf's padding stays zero
         x *= self.filter
         y = sfft.ifft(x, axis=-1, overwrite_x=True)
-        return _antenna_power(y[..., :self.m])
+        return _antenna_power(y[..., :self.m], scratch=True)
+
+
+def fft_length(n: int) -> int:
+    """The chirp-z transforms' length for a linear convolution of n outputs: the smallest
+    5-smooth length >= n (``scipy.fft.next_fast_len(n, real=True)``).
+
+    Any length >= n gives the same convolution (to rounding); the 5-smooth ones run on
+    pocketfft's radix-4, 2, 3 and 5 passes only. ``next_fast_len(n)`` also admits factors 7 and
+    11, whose passes cost more per element: for the chain's grid (n = 1378) it picks
+    2 3^2 7 11 = 1386, which was measured slower than 2^5 3^2 5 = 1440 (docs/performance.md).
+    """
+    return sfft.next_fast_len(n, real=True)
 
 
 #: chirp-z plans by (bins, first lag, lags, grid size, dtype)
@@ -309,23 +413,31 @@ def zoom_plan(pos: np.ndarray, l0: int, m: int, n: int, dtype: np.dtype) -> Zoom
     """The :class:`ZoomPlan` of these bins and lags (kept), or None when one FFT of the whole
     grid costs less (cost ~ L log2 L per FFT: two of the chirp-z length against one of N)."""
     def make():
-        size = sfft.next_fast_len(int(pos.max()) + m)
+        size = fft_length(int(pos.max()) + m)
         cheaper = 2 * size * np.log2(size) < 0.8 * n * np.log2(n)
         return ZoomPlan(pos, l0, m, n, dtype) if cheaper else None
 
     return kept(_ZOOM_PLANS, (pos.tobytes(), l0, m, n, dtype.str), make)
 
 
-def _antenna_power(q: np.ndarray) -> np.ndarray:
+def _antenna_power(q: np.ndarray, scratch: bool = False) -> np.ndarray:
     """sum_a |q_a|^2 over the antenna axis -2: [..., A, L] complex -> [..., L] float64.
 
     |q|^2 in q's precision (re^2 + im^2), summed over the antennas in float64, in place of
     ``np.sum(q.real ** 2 + q.imag ** 2, axis=-2, dtype=np.float64)`` (the same values) without
     its two temporaries.
+
+    :param scratch: q (contiguous along L) may be overwritten: the squares are taken in place
+        on its interleaved (re, im) pairs, without the strided reads of ``q.real``
     """
-    s = np.square(q.real)
-    s += np.square(q.imag)
-    return np.sum(s, axis=-2, dtype=np.float64)
+    if scratch:
+        v = q.view(q.real.dtype)                                      # [..., A, 2 L]
+        np.square(v, out=v)
+        s = v[..., 0::2] + v[..., 1::2]
+    else:
+        s = np.square(q.real)
+        s += np.square(q.imag)
+    return s.sum(axis=-2, dtype=np.float64)
 
 
 class ToAEstimator:
@@ -338,6 +450,10 @@ class ToAEstimator:
     def __init__(self, cfg: ReceiverConfig, guard_s: float = 0.25e-6):
         self.cfg = cfg
         self.guard_s = float(guard_s)
+        #: Doppler hypotheses [V] float64, Hz (None without a scan)
+        self.hypotheses = (np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
+                           if cfg.doppler_max_hz > 0 else None)
+        self._layouts: dict = {}
 
     # -- helpers ---------------------------------------------------------------------------
     def _window(self, cs: CrossSpectra, kind: str) -> np.ndarray:
@@ -346,8 +462,8 @@ class ToAEstimator:
         x = np.clip(cs.freqs / (cs.band_hz + cs.bin_spacing_hz), -0.5, 0.5)
         return np.cos(np.pi * x) ** 2
 
-    def _grid(self, cs: CrossSpectra, upsample: int) -> tuple[np.ndarray, np.ndarray, int]:
-        """Grid indices of the bins, the searched lag indices and the grid size."""
+    def _grid(self, cs: CrossSpectra, upsample: int) -> _LagGrid:
+        """Grid indices of the bins, the searched lag indices, the grid size and the lag step."""
         idx = np.round(cs.freqs / cs.bin_spacing_hz).astype(np.int64)
         span = int(idx.max() - idx.min() + 1)
         n_up = 1 << int(np.ceil(np.log2(max(span, 2))))
@@ -356,7 +472,26 @@ class ToAEstimator:
         lags = np.arange(-int(np.ceil(self.guard_s / step)), int(np.ceil(self.cfg.search_window_s / step)) + 1)
         if lags.size >= n_up:
             raise ValueError("search window exceeds the correlation period 1 / bin spacing")
-        return idx, lags, n_up
+        for a in (idx, lags):
+            a.flags.writeable = False
+        return _LagGrid(idx, lags, n_up, step)
+
+    def _layout(self, cs: CrossSpectra) -> _Layout:
+        """The grids and the window of these bins (kept: a chain's bins are the same at every
+        call)."""
+        def make():
+            win = (self._window(cs, self.cfg.first_path_window) if self.cfg.toa_method != "strongest"
+                   else np.ones(cs.freqs.shape))
+            grid = self._grid(cs, self.cfg.upsample)
+            h = grid.step / 4.0 ** np.arange(1, self.cfg.refine_steps + 1)              # [R], s
+            shifts = np.exp(2j * np.pi * cs.freqs[None, :, None]
+                            * (h[:, None, None] * np.array([-1.0, 0.0, 1.0])))          # [R, K, 3]
+            arrays = (win, win.astype(np.float32), win ** 2, shifts)
+            for a in arrays:
+                a.flags.writeable = False
+            return _Layout(grid, self._grid(cs, 1), *arrays)
+
+        return kept(self._layouts, (cs.freqs.tobytes(), cs.bin_spacing_hz, cs.band_hz), make)
 
     @staticmethod
     def lag_power(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int,
@@ -366,39 +501,54 @@ class ToAEstimator:
 
         Only the power is used, so the bins are transformed from the lowest one at index 0: that
         multiplies every profile by one phase ramp over the lags, invisible in |.|^2, and for
-        contiguous bins (the frequency front end) the zero padding is the FFT's own.
+        contiguous bins (the frequency front end) the input is the bins followed by zeros. A
+        contiguous window of lags short enough goes through the chirp-z plan
+        (:func:`zoom_plan`), else one FFT of the whole grid.
 
         :param win: [num_bins] real, a per-bin window applied on the way into the FFT's buffer
             (the same values as transforming ``g * win``, without the product's own array)
+
+        ``g`` may already be the head of the zero-padded input (:meth:`padded_input`, which
+        :meth:`doppler_spectra` can write into): it is then transformed where it is.
         """
         dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
         pos = idx - idx.min()
         plan = zoom_plan(pos, int(lags[0]), lags.size, n_up, np.dtype(dtype))
         if plan is not None and lags[-1] - lags[0] == lags.size - 1:
             return plan.power(g, win)
-        buf = _workspace("profile", g.shape[:-1] + (n_up,), dtype)   # zero-padded, then in place
+        buf = _padded("profile", g.shape[:-1] + (n_up,), dtype, int(pos.max()) + 1)
         if pos[-1] == pos.size - 1 and np.all(np.diff(pos) == 1):
             head = buf[..., :pos.size]
-            if win is None:
-                head[...] = g
-            else:
+            if win is not None:
                 np.multiply(g, win, out=head)
-            buf[..., pos.size:] = 0
+            elif not _is_view(g, head):
+                head[...] = g
         else:
-            buf[...] = 0
+            buf[..., :int(pos.max()) + 1] = 0
             buf[..., pos] = g if win is None else g * win
-        p = sfft.ifft(buf, axis=-1, overwrite_x=True, norm="forward")
+        p = sfft.ifft(buf, axis=-1, norm="forward")      # out of place: buf's padding stays zero
         lo, hi = -int(lags[0]), int(lags[-1]) + 1
         if not (0 <= lo and hi <= n_up - lo and lags.size == lo + hi):   # not one wrapped run
             return _antenna_power(p[..., lags % n_up])
         # the lags -lo..hi-1 are two runs of the FFT's output: slices, no gather (4x faster)
         out = np.empty(p.shape[:-2] + (lags.size,))
         for q, part in ((p[..., n_up - lo:], slice(0, lo)), (p[..., :hi], slice(lo, None))):
-            out[..., part] = _antenna_power(q)
+            out[..., part] = _antenna_power(q, scratch=True)   # disjoint runs of the work array
         return out
 
     @staticmethod
-    def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
+    def padded_input(lead: tuple, idx: np.ndarray, n_up: int, dtype) -> np.ndarray | None:
+        """The zero-padded input [*lead, n_up] of :meth:`lag_power`'s full-grid transform when
+        the bins (grid indices ``idx`` [K]) are contiguous, else None: kept per thread, zero
+        beyond the first K entries, contents undefined within them."""
+        pos = idx - idx.min()
+        if not (pos[-1] == pos.size - 1 and np.all(np.diff(pos) == 1)):
+            return None
+        return _padded("profile", tuple(lead) + (n_up,), dtype, pos.size)
+
+    @staticmethod
+    def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray,
+                        out: np.ndarray | None = None) -> np.ndarray:
         """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
         Single precision: the maps built from it only rank hypotheses and cells against
@@ -407,20 +557,27 @@ class ToAEstimator:
         (scripts/bench_chain.py). A per-bin window w_k commutes with the sum over blocks, so
         one product serves the windowed map too. On the occupied parts (``cs.groups``), one
         product per group of blocks sharing their bins: a comb-6 PRS needs 1/6 of the dense
-        product's work (summing block by block instead was measured 6x slower).
+        product's work (summing block by block instead was measured 6x slower). Groups whose
+        bins overlap add up on the shared bins; disjoint ones (a comb) are written in place.
+
+        :param out: [V, A, K] complex64 to write into (e.g. the head of :meth:`padded_input`),
+            else a new array
         """
         rot = _doppler_rotations(nus, tc)                                             # [V, B]
         a_ = cs.num_ant
-        out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
+        if out is None:
+            out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
+        elif cs.bins_overlap or not cs.bins_covered:
+            out[...] = 0
         for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
-            q = part.astype(np.complex64).transpose(1, 0, 2).reshape(blocks.size, a_ * bins.size)
-            out[:, :, ix] = (rot[:, blocks] @ q).reshape(-1, a_, bins.size)
+            q = np.empty((blocks.size, a_, bins.size), dtype=np.complex64)   # [B_g, A, K_g]
+            q[...] = part.transpose(1, 0, 2)                                  # cast and reorder in one pass
+            prod = (rot[:, blocks] @ q.reshape(blocks.size, -1)).reshape(-1, a_, bins.size)
+            if cs.bins_overlap:
+                out[:, :, ix] += prod
+            else:
+                out[:, :, ix] = prod
         return out
-
-    @staticmethod
-    def _eval(g: np.ndarray, freqs: np.ndarray, tau: float) -> np.ndarray:
-        """Exact complex profile at one delay: [..., num_bins] -> [...]."""
-        return g @ np.exp(2j * np.pi * freqs * tau)
 
     def _first_crossing(self, metric: np.ndarray, floor: float, n_hyp: int, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
@@ -431,7 +588,7 @@ class ToAEstimator:
         gamma = chdtri(dof, self.cfg.false_alarm / n_hyp) / dof
         thr = max(gamma * floor, metric.max() * 10 ** (-self.cfg.first_path_rel_db / 10))
         above = np.flatnonzero(metric >= thr)
-        i = int(above[0]) if above.size else int(np.argmax(metric))
+        i = int(above[0]) if above.size else int(metric.argmax())
         while i + 1 < metric.size and metric[i + 1] > metric[i]:
             i += 1
         return i
@@ -449,18 +606,21 @@ class ToAEstimator:
         cfg = self.cfg
         t = cs.block_times
         a_n = cs.num_ant
-        dof = float(2 * a_n if noise_dof is None else np.clip(noise_dof, 2.0, 2 * a_n))
-        idx, lags, n_up = self._grid(cs, cfg.upsample)
-        step = 1.0 / (n_up * cs.bin_spacing_hz)
+        dof = float(2 * a_n if noise_dof is None else _clip(float(noise_dof), 2.0, 2 * a_n))
+        layout = self._layout(cs)
+        grid = layout.grid
+        idx, lags, n_up, step = grid.idx, grid.lags, grid.size, grid.step
         tc = t - t.mean()
         # 1. Doppler scan on the unwindowed metric (on the grid without zero padding: the
         #    straddle loss is common to every Doppler hypothesis)
         if cfg.doppler_max_hz > 0:
-            nus = np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
-            idx1, lags1, n1 = self._grid(cs, 1)
-            g_nu = self.doppler_spectra(cs, nus, tc)                                  # [V, A, K]
+            nus = self.hypotheses
+            idx1, lags1, n1 = layout.scan.idx, layout.scan.lags, layout.scan.size
+            # contiguous bins: the spectra written straight into the scan transform's input
+            pad = self.padded_input((nus.size, a_n), idx1, n1, np.complex64)
+            g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
             metric = self.lag_power(g_nu, idx1, lags1, n1).max(axis=-1)
-            i = int(np.argmax(metric))
+            i = int(metric.argmax())
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
@@ -470,15 +630,15 @@ class ToAEstimator:
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
         m_rect = self.lag_power(g, idx, lags, n_up)
-        tau_pk = float(lags[int(np.argmax(m_rect))] * step)
+        tau_pk = float(lags[int(m_rect.argmax())] * step)
         x = cs.at_delay(tau_pk) * rot                                              # [A, B]
-        ref = np.sum(x, axis=1)
-        z = np.sum(x * np.conj(ref)[:, None], axis=0)                              # [B]
+        ref = x.sum(axis=1)
+        z = (x * ref.conj()[:, None]).sum(axis=0)                                # [B]
         w = np.abs(z)
-        if cfg.doppler_max_hz > 0 and np.sum(w) > 0:
+        if cfg.doppler_max_hz > 0 and w.sum() > 0:
             ph = np.angle(z)
-            tw = np.sum(w * tc) / np.sum(w)
-            slope = np.sum(w * (tc - tw) * ph) / max(np.sum(w * (tc - tw) ** 2), 1e-30)
+            tw = (w * tc).sum() / w.sum()
+            slope = (w * (tc - tw) * ph).sum() / max((w * (tc - tw) ** 2).sum(), 1e-30)
             dnu = slope / (2 * np.pi)
             if abs(dnu) <= cfg.doppler_step_hz:
                 nu += dnu
@@ -493,9 +653,9 @@ class ToAEstimator:
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
         dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups]))
         nv = max(float(noise_var), 0.0)
-        sum_ref = float(np.sum(cs.ref_power))
+        sum_ref = float(cs.bin_power.sum())
         floor_rect = a_n * nv * sum_ref
-        cfar = float(np.median(m_rect)) * dof / chdtri(dof, 0.5)
+        cfar = _median(m_rect) * dof / chdtri(dof, 0.5)
         if cfar > floor_rect and sum_ref > 0:
             floor_rect, nv = cfar, cfar / (a_n * sum_ref)
         peak = float(m_rect.max())
@@ -506,40 +666,39 @@ class ToAEstimator:
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
             scan = _DopplerScan(g_nu, nus) if cfg.doppler_max_hz > 0 else None
-            tau, d = self._pick(cs, _LagGrid(idx, lags, n_up, step), m_rect, scan,
-                                _Derotated(nu, rot, g), tc, nv, dof)
+            tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
-            tau = float(lags[int(np.argmax(m_rect))] * step)
+            tau = float(lags[int(m_rect.argmax())] * step)
+        e = np.exp(2j * np.pi * cs.freqs * tau)              # [K], the exact profile's phase ramp
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db),
-                           peak=self._eval(g, cs.freqs, tau), snapshots=cs.at_delay(tau) * rot,
-                           noise_var=nv)
+                           peak=g @ e, snapshots=cs.at_delay(tau, e) * rot, noise_var=nv)
 
-    def _pick(self, cs: CrossSpectra, grid: _LagGrid, m_rect: np.ndarray, scan: _DopplerScan | None,
+    def _pick(self, cs: CrossSpectra, layout: _Layout, m_rect: np.ndarray, scan: _DopplerScan | None,
               start: _Derotated, tc: np.ndarray, nv: float, dof: float) -> tuple[float, _Derotated]:
         """Steps 4 and 5 for a detected BS: the ToA, and the derotation (Doppler, block phases,
         combined spectra), ``start`` or, when the first path's own Doppler replaces the scan's,
         the first path's.
 
-        :param grid: the zero-padded profile's grid; m_rect: [L] float64, its unwindowed power
+        :param layout: the bins' grids and window; m_rect: [L] float64, the zero-padded
+            profile's unwindowed power
         :param scan: the Doppler scan (None without one)
         :param tc: [B] float64, s, block times about their mean; nv: per-RE noise variance;
             dof: the noise's chi-square degrees of freedom
         """
         cfg = self.cfg
         a_n = cs.num_ant
-        idx, lags, n_up, step = grid.idx, grid.lags, grid.size, grid.step
+        idx, lags, n_up, step = layout.grid.idx, layout.grid.lags, layout.grid.size, layout.grid.step
         nu, rot, g = start.doppler_hz, start.rot, start.combined
         g_nu, nus = (scan.spectra, scan.hypotheses) if scan is not None else (None, None)
         # 4. ToA rule
+        win = layout.win                                        # [K], ones for "strongest"
         if cfg.toa_method == "strongest":
-            win = np.ones(cs.freqs.shape)
             metric = m_rect
-            i = int(np.argmax(metric))
+            i = int(metric.argmax())
         else:
-            win = self._window(cs, cfg.first_path_window)
-            floor = a_n * nv * float(np.sum(cs.ref_power * win ** 2))
+            floor = a_n * nv * float(cs.bin_power @ layout.win2)
             if cfg.doppler_max_hz > 0:
                 # delay-Doppler map (on the zero-padded grid: a coarse one was measured to lose
                 # accuracy on UMa fast fading, p50 12.6 -> 17.8 m): paths of one link can
@@ -547,11 +706,11 @@ class ToAEstimator:
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
                 idx1, lags1, n1 = idx, lags, n_up
-                dmap = self.lag_power(g_nu, idx1, lags1, n1, win.astype(np.float32))  # [V, L1]
+                dmap = self.lag_power(g_nu, idx1, lags1, n1, layout.win32)  # [V, L1]
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, nus.size, dof)
                 col = dmap[:, i1]
-                v = int(np.argmax(col))
+                v = int(col.argmax())
                 nu_fp = float(nus[v])
                 if 0 < v < nus.size - 1:
                     nu_fp += cfg.doppler_step_hz * _parabola(*col[v - 1:v + 2])
@@ -561,7 +720,7 @@ class ToAEstimator:
                     g = cs.combine(rot)
                 metric = self.lag_power(g, idx, lags, n_up, win)
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
-                i = int(np.clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
+                i = int(_clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
                 while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
                     i += 1 if metric[i + 1] > metric[i] else -1
             else:
@@ -572,12 +731,13 @@ class ToAEstimator:
             tau = (lags[i] + _parabola(*metric[i - 1:i + 2])) * step
         else:
             tau = lags[i] * step
+        # the profile sum_a |c_a(tau + s)|^2 at s = -h, 0, h is sum_a |sum_k u_ak e^{j2pi f_k s}|^2
+        # with u = g w e^{j2pi f tau}: one exp and one product [A, K] @ [K, 3] per step
         gw = g * win
         h = step / 4
-        for _ in range(cfg.refine_steps):
-            # the three profiles' phase ramps from one exp call (the same values as three)
-            e = np.exp((2j * np.pi * cs.freqs)[None, :] * np.array([tau - h, tau, tau + h])[:, None])
-            vals = [float(np.sum(np.abs(gw @ e[j]) ** 2)) for j in range(3)]     # e: [3, K]
+        for shift in layout.shifts:                                                # [K, 3]
+            c = (gw * np.exp(2j * np.pi * cs.freqs * tau)) @ shift                 # [A, 3]
+            vals = _antenna_power(c)                                               # [3]
             tau += h * _parabola(*vals)
             h /= 4
         return tau, _Derotated(nu, rot, g)

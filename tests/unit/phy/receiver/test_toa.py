@@ -19,7 +19,7 @@ from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.phy.transmitter import PRSTransmitter
 from veriloc_rt.phy.receiver.sync import (frequency_cross_spectra, noise_variance,
                                           time_cross_spectra)
-from veriloc_rt.phy.receiver.toa import ToAEstimator, zoom_plan
+from veriloc_rt.phy.receiver.toa import CrossSpectra, ToAEstimator, ZoomPlan, fft_length, zoom_plan
 from veriloc_rt.config.security import SecurityConfig
 
 GUARD = 0.25e-6
@@ -308,3 +308,68 @@ def test_profile_power_on_the_chain_grid_equals_the_explicit_dft(contiguous):
             got32 = ToAEstimator.lag_power(g.astype(np.complex64), idx, lags, n,
                                            None if w is None else w.astype(np.float32))
             np.testing.assert_allclose(got32, want, rtol=0, atol=C64_RTOL * want.max())
+
+
+def _five_smooth(n: int) -> bool:
+    for p in (2, 3, 5):
+        while n % p == 0:
+            n //= p
+    return n == 1
+
+
+def test_chirp_z_length_is_the_smallest_five_smooth_one_above_the_convolution():
+    """fft_length(n): the smallest 2^a 3^b 5^c >= n, against a brute-force search (exact);
+    on the chain's grid (P = 624 bins, M = 755 lags: n = 1378) 2^5 3^2 5 = 1440."""
+    for n in range(1, 2500):
+        want = next(m for m in range(n, 2 * n + 2) if _five_smooth(m))
+        assert fft_length(n) == want
+    assert fft_length(624 + 755 - 1) == 1440
+
+
+@pytest.mark.parametrize("extra", [0, 31, None])
+def test_chirp_z_gives_the_dft_at_any_length_above_the_linear_convolution(extra):
+    """ZoomPlan's FFTs of length L compute a linear convolution of P + M - 1 outputs, so every
+    L >= P + M - 1 gives the zero-padded DFT written out (second method; tolerance: double
+    precision, 1e-9 relative as above): the bound itself (extra = 0), a prime length above it
+    (P + M - 1 + 31 = 1409) and the default fft_length (None); below the bound the plan is
+    refused (the convolution would wrap)."""
+    rng = np.random.default_rng(12)
+    pos, l0, m, n = np.arange(624), -16, 755, 4096
+    lags = l0 + np.arange(m)
+    size = None if extra is None else 624 + m - 1 + extra
+    plan = ZoomPlan(pos, l0, m, n, np.dtype(np.complex128), size)
+    assert plan.size == (1440 if extra is None else size)
+    g = rng.standard_normal((2, 5, 624)) + 1j * rng.standard_normal((2, 5, 624))
+    win = np.cos(np.pi * np.linspace(-0.49, 0.49, 624)) ** 2
+    dft = np.exp(2j * np.pi * np.outer(lags, pos) / n)                        # [M, K]
+    for w in (None, win):
+        gw = g if w is None else g * w
+        want = np.sum(np.abs(np.einsum("lk,vak->val", dft, gw)) ** 2, axis=1)
+        np.testing.assert_allclose(plan.power(g, w), want, rtol=1e-9, atol=1e-9 * want.max())
+    with pytest.raises(ValueError, match="below P \\+ M - 1"):
+        ZoomPlan(pos, l0, m, n, np.dtype(np.complex128), 624 + m - 2)
+
+
+def test_doppler_spectra_add_up_groups_whose_bins_overlap():
+    """Blocks whose occupancy differs but overlaps (all bins, the even bins, two bins in three)
+    form groups sharing bins: the Doppler spectra add the groups' products there (they were
+    overwritten by the last group). Second method: the dense product over every block and bin
+    (ref_power all ones: one group); tolerance: single precision, 1e-6 of the largest entry as
+    above. The block combination is checked the same way in double precision (1e-12)."""
+    rng = np.random.default_rng(21)
+    a_n, b_n, k_n = 2, 4, 12
+    ref = np.ones((b_n, k_n))
+    ref[1, 1::2] = 0
+    ref[3, ::3] = 0
+    spectra = (rng.standard_normal((a_n, b_n, k_n)) + 1j * rng.standard_normal((a_n, b_n, k_n))) * (ref > 0)
+    cs = CrossSpectra(spectra, np.arange(k_n) * 15e3, 15e3, np.arange(b_n) * 1e-3, ref, k_n * 15e3)
+    assert len(cs.groups) == 3 and cs.bins_overlap
+    flat = dataclasses.replace(cs, ref_power=np.ones_like(ref))
+    assert len(flat.groups) == 1 and not flat.bins_overlap
+    nus = np.arange(-50.0, 51.0, 25.0)
+    tc = cs.block_times - cs.block_times.mean()
+    want = ToAEstimator.doppler_spectra(flat, nus, tc)
+    np.testing.assert_allclose(ToAEstimator.doppler_spectra(cs, nus, tc), want, rtol=0,
+                               atol=1e-6 * np.abs(want).max())
+    w = np.exp(1j * rng.uniform(0, 2 * np.pi, b_n))
+    np.testing.assert_allclose(cs.combine(w), flat.combine(w), rtol=0, atol=1e-12 * np.abs(flat.combine(w)).max())
