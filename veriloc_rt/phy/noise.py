@@ -9,7 +9,7 @@ k T0). The chain (:mod:`veriloc_rt.phy.chain`) and the uplink receiver
 (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`) take one each:
 
 * :class:`WhiteNoise` (the run's): i.i.d. draws from the generator of the call, i.e. the run's
-  per-point stream ``stream(seed, "noise", mode, point)``; a grid's draws run slot-major, so its
+  per-point stream ``stream(seed, "noise", 0, point)``; a grid's draws run slot-major, so its
   first slots get the same noise whatever the number of slots.
 * :class:`GridNoise`: the noise drawn as a per-RE grid, slot-major, added to a grid or
   OFDM-modulated into IQ (orthonormal: each FFT window gets the grid back exactly; CP and tail
