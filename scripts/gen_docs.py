@@ -228,6 +228,10 @@ METRICS_TOP_DOC = {
                  "keys below",
     "timing_s": "wall and CPU seconds per stage (below), the worker count and the peak memory",
     "propagation_model": "`raytrace` or `uma` (the config's `propagation.model`)",
+    "doppler_hz": "`max_path`: the largest Doppler magnitude the UE receives in the run (its "
+                  "BS -> UE paths; with an attack the adversary's paths, relayed ones with both "
+                  "shifts), Hz; `scan`: the UE's Doppler scan half-range that follows from it "
+                  "(`receiver.doppler_scan`), Hz",
     "roc": "the detection analysis (below): ROC, AUC and operating point per decision and "
            "attack, the uninformative flags, the fused decisions (absent without a `none` "
            "scenario and an attack scenario)",
