@@ -288,7 +288,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     t = symbol_times(ofdm, slots, t0)
     f = subcarrier_frequencies(ofdm)
     k_n = ofdm.num_subcarriers
-    out = np.zeros((links.num_ant, t.size, k_n), dtype=np.complex128)
+    shape = (links.num_ant, t.size, k_n)
+    out = None   # made by the first link: a dense one's product is it (no zeros to add to)
     touched = np.zeros((t.size, k_n), dtype=bool)   # REs of out some link has added to
     flat_t = t.ravel()
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
@@ -299,9 +300,16 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         occ = x != 0   # a dense grid (a jammer's noise) gains nothing from groups
         groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
         if groups is None:
-            out += amp * response(f, flat_t) * x[None]
+            v = np.multiply(response(f, flat_t), amp)      # (amp * h) * x, in one new array
+            v *= x[None]
+            if out is None:   # 0 + v: v with -0.0 made +0.0
+                out = np.add(v, 0.0, out=v)
+            else:
+                out += v
             touched[:] = True
             continue
+        if out is None:
+            out = np.zeros(shape, dtype=np.complex128)
         for sym, sc in groups:
             ix = group_index(sym, sc)
             # a H X: the values of (amp * h) * x
@@ -312,6 +320,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
             else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
                 out[:, ix[0], ix[1]] = np.add(v, 0.0, out=v)
                 touched[ix] = True
+    if out is None:
+        out = np.zeros(shape, dtype=np.complex128)
     return out.reshape(links.num_ant, *t.shape, k_n)
 
 

@@ -195,8 +195,9 @@ class DownlinkChannel:
                 return Received(base, None)
             slots = self.slots[:m]
             if sig.ndim == 3:   # per RE: nothing reaches the REs its grid leaves empty
-                return Received(base + apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0),
-                                None, base, sig[:m] != 0)
+                y = apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0)
+                y += base   # (base + y, in y's own array)
+                return Received(y, None, base, sig[:m] != 0)
             iq = apply_time(adv, sig[None], amp, fs, t0, self.frame_samples, self.decimation)
             return Received(base + self.ofdm.demodulate(iq, self.slots)[:, :m], None)
         iq = base
