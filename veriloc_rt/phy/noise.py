@@ -31,6 +31,7 @@ import numpy as np
 from .channel import add_noise, draw_noise
 from .nr.ofdm import OFDM
 from .nr.prs import SYMBOLS_PER_SLOT
+from ..rng import KeptDraw
 
 __all__ = ["GridNoise", "KeptWhiteNoise", "NoiseSource", "WhiteNoise"]
 
@@ -74,21 +75,18 @@ class KeptWhiteNoise(WhiteNoise):
     follows_call_rng = True
 
     def __init__(self, size: int = 4):
-        self.size = int(size)
-        self._kept: list[tuple] = []   # (state on entry, shape, variance, noise, state after)
+        self._kept = KeptDraw(size)
 
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
         if variance <= 0 or not isinstance(rng, np.random.Generator):
             return super().__call__(x, variance, rng)
-        state = rng.bit_generator.state
-        for entry in self._kept:
-            if entry[1] == x.shape and entry[2] == variance and entry[0] == state:
-                rng.bit_generator.state = entry[4]
-                return entry[3] + x
-        noise = draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
-        noise.flags.writeable = False
-        self._kept = [(state, x.shape, variance, noise, rng.bit_generator.state)] + self._kept[:self.size - 1]
-        return noise + x
+
+        def draw():
+            n = draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+            n.flags.writeable = False
+            return n
+
+        return self._kept((x.shape, variance), rng, draw) + x
 
 
 class GridNoise(NoiseSource):

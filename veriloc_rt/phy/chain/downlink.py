@@ -15,9 +15,7 @@ gets it back with the generator moved past the noise draws, as if drawn again.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -27,6 +25,7 @@ from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, equal_ar
                        re_amplitude, timing_reference)
 from ..nr.ofdm import OFDM
 from ..noise import NoiseSource
+from ...rng import KeptDraw
 from .frames import FrameSignals
 
 __all__ = ["Adversary", "DownlinkChannel", "DownlinkLinks", "KeptDraw", "Received", "SignalKey"]
@@ -99,25 +98,6 @@ class SignalKey:
     frame: int
     replica: str
     num_slots: int
-
-
-class KeptDraw:
-    """The last value computed from a generator, kept under a key and the generator's state."""
-
-    def __init__(self):
-        self._entry: tuple | None = None   # (key, state on entry, value, state after)
-
-    def __call__(self, key: Any, rng: np.random.Generator, compute: Callable[[], Any]):
-        """``compute()`` (which draws from ``rng``), or the value kept by the last call with an
-        equal key and the same ``rng`` state, with ``rng`` moved past its draws."""
-        state = rng.bit_generator.state
-        e = self._entry
-        if e is not None and e[0] == key and e[1] == state:
-            rng.bit_generator.state = e[3]
-            return e[2]
-        value = compute()
-        self._entry = (key, state, value, rng.bit_generator.state)
-        return value
 
 
 class DownlinkChannel:
