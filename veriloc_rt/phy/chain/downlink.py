@@ -87,6 +87,22 @@ class Received:
     benign: np.ndarray | None = None
     touched: np.ndarray | None = None
 
+    @property
+    def plain(self) -> bool:
+        """A per-RE grid with no adversary's signal in it (what a later grid may add to)."""
+        return self.benign is None and self.touched is None and self.iq is None
+
+    def adds_to(self, grid: np.ndarray) -> bool:
+        """``grid`` (the very array) plus an adversary's signal confined to :attr:`touched`."""
+        return self.touched is not None and self.benign is grid
+
+    def reaches(self, mask: np.ndarray, slots=None) -> bool:
+        """The adversary's signal reaches an RE of ``mask`` (bool, broadcast against
+        :attr:`touched` [S, 14, K]: [S, 14, K], [14, K] in every slot, [14, 1] whole symbols) in
+        ``slots`` (indices; None: every slot). Only with :attr:`touched`."""
+        t = self.touched if slots is None else self.touched[list(slots)]
+        return bool(np.any(t & mask))
+
 
 @dataclass(frozen=True)
 class SignalKey:

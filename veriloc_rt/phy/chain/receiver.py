@@ -71,7 +71,8 @@ class TimingStage:
         self.toa, self.ofdm, self.slots, self.channel = toa, ofdm, slots, channel
         self.search_window_s = float(search_window_s)
         self.busy_symbols = tuple(int(s) for s in busy_symbols)
-        self.free_symbols = tuple(s for s in range(14) if s not in self.busy_symbols)
+        #: [14, 1] bool, the symbols the noise estimates read
+        self.free = np.array([s not in self.busy_symbols for s in range(14)])[:, None]
         self.noise_var = float(noise_var)
         #: the last call on a grid without an adversary: (grid, replicas, nv, dof, estimates,
         #: spectra), what a call on that grid plus an adversary confined to some REs reuses
@@ -96,7 +97,7 @@ class TimingStage:
             dof = noise_dof(grid, self.busy_symbols)
         ests, spectra = [], []
         for j, rep in enumerate(replicas):
-            if reuse is not None and not np.any(received.touched[rep != 0]):
+            if reuse is not None and not received.reaches(rep != 0):
                 ests.append(reuse[4][j])
                 spectra.append(reuse[5][j])
                 continue
@@ -107,7 +108,7 @@ class TimingStage:
                                         self.channel.timing_guard_s, self.search_window_s)
             ests.append(self.toa(cs, nv, dof))
             spectra.append(cs)
-        if received.benign is None and received.touched is None and received.iq is None:
+        if received.plain:
             self._benign = (grid, tuple(replicas), nv, dof, tuple(ests), tuple(spectra))
         det = np.array([e.detected for e in ests])
         toa = np.array([t0 + e.toa_s if e.detected else np.nan for e in ests])
@@ -117,13 +118,10 @@ class TimingStage:
         """The kept benign call when ``received`` is its grid plus an adversary's signal that
         leaves the free symbols alone and the replicas are the same, else None."""
         kept = self._benign
-        if (kept is None or received.benign is not kept[0] or received.touched is None
-                or received.touched.shape != kept[0].shape[1:] or len(replicas) != len(kept[1])
+        if (kept is None or not received.adds_to(kept[0]) or len(replicas) != len(kept[1])
                 or any(a is not b for a, b in zip(replicas, kept[1]))):
             return None
-        if np.any(received.touched[:, list(self.free_symbols), :]):
-            return None
-        return kept
+        return None if received.reaches(self.free) else kept
 
 
 class FixStage:
@@ -224,24 +222,20 @@ class TagStage:
         :param received: what ``grid`` came from (None: nothing is kept or reused)
         """
         kept = self._benign
-        reuse = (kept is not None and received is not None and received.benign is kept[0]
-                 and received.touched is not None and kept[1] is verifier and kept[2] == frame)
+        reuse = (kept is not None and received is not None and received.adds_to(kept[0])
+                 and kept[1] is verifier and kept[2] == frame)
+        lay = verifier.layout
         tags = np.zeros(len(estimates), dtype=bool)
         for b, e in enumerate(estimates):
-            if reuse and b < len(kept[3]) and e is kept[3][b] and not self._touched(received.touched, verifier, b):
+            if (reuse and b < len(kept[3]) and e is kept[3][b]
+                    and not received.reaches(lay.prs_mask(b) | lay.tag_mask(b), self.tag_slots)):
                 tags[b] = kept[4][b]
                 continue
             rep = replicas[b] if replicas is not None else None
             tags[b] = e.detected and self.one(verifier, grid, e, b, frame, rep)
-        if received is not None and received.benign is None and received.touched is None:
+        if received is not None and received.plain:
             self._benign = (grid, verifier, frame, tuple(estimates), tags.copy())
         return tags
-
-    def _touched(self, touched: np.ndarray, verifier: TagVerifier, bs: int) -> bool:
-        """Whether ``touched`` [S, 14, K] reaches a PRS or tag RE of BS ``bs`` in a checked slot."""
-        lay = verifier.layout
-        mine = lay.prs_mask(bs) | lay.tag_mask(bs)                       # [14, K]
-        return any(bool(np.any(touched[s][mine])) for s in self.tag_slots)
 
     def one(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
             replica: np.ndarray | None) -> bool:
