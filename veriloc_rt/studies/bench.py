@@ -95,7 +95,7 @@ KNOBS = (
     Knob("waveform", "domain", "channel.domain", ("frequency", "time")),
     Knob("waveform", "doppler_max_hz", "receiver.doppler_max_hz", (0.0, 400.0)),
     Knob("waveform", "doppler_scan", "receiver.doppler_scan", ("channel", "fixed")),
-    Knob("waveform", "doppler_step_hz", "receiver.doppler_step_hz", (100.0, 50.0, 25.0, 12.5)),
+    Knob("waveform", "doppler_step_hz", "receiver.doppler_step_hz", (100.0, 50.0, 25.0, 12.5, 6.25)),
     Knob("waveform", "upsample", "receiver.upsample", (1, 2, 4, 8)),
 )
 #: the accuracy axis of each group's Pareto front: what the group's knobs act on, as the share
@@ -172,7 +172,7 @@ QUICK_LEVELS = {
     "margin_m": (30.0, 60.0, 120.0),
     "sample_rate_hz": (None, 61.44e6, 122.88e6),
     "slots_per_frame": (5, 10),
-    "doppler_step_hz": (50.0, 25.0, 12.5),
+    "doppler_step_hz": (25.0, 12.5, 6.25),
     "upsample": (2, 4, 8),
 }
 

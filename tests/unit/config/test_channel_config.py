@@ -28,18 +28,21 @@ def test_bad_input_names_the_field(cls, data, field):
     assert err.value.field == field
 
 
-@pytest.mark.parametrize("fastest_hz,expected_hz", [
-    (162.0, 200.0),    # 6.48 steps -> 7, plus the one beyond: 8 x 25 Hz
-    (150.0, 175.0),    # exactly 6 steps, plus one
-    (0.0, 25.0),       # a static channel still gets the neighbours of 0 Hz
-    (390.0, 400.0),    # 17 steps would be 425 Hz: capped at the UE's doppler_max_hz
+@pytest.mark.parametrize("step_hz,fastest_hz,expected_hz", [
+    (25.0, 162.0, 200.0),    # 6.48 steps -> 7, plus the one beyond: 8 x 25 Hz
+    (25.0, 150.0, 175.0),    # exactly 6 steps, plus one
+    (25.0, 0.0, 25.0),       # a static channel still gets the neighbours of 0 Hz
+    (25.0, 390.0, 400.0),    # 17 steps would be 425 Hz: capped at the UE's doppler_max_hz
+    (12.5, 162.0, 175.0),    # 12.96 steps -> 13, plus one: 14 x 12.5 Hz
+    (12.5, 279.0, 300.0),    # the paper's UMa drive: 22.3 -> 23, plus one: 24 x 12.5 Hz
 ])
-def test_the_doppler_scan_fitted_to_the_channel(fastest_hz, expected_hz):
+def test_the_doppler_scan_fitted_to_the_channel(step_hz, fastest_hz, expected_hz):
     """receiver.doppler_scan 'channel': +-(fastest Doppler rounded up to whole steps + one
-    step), at most doppler_max_hz (worked values at the default 25 Hz step and 400 Hz cap)."""
-    got = ReceiverConfig().scanned_for(fastest_hz)
+    step), at most doppler_max_hz (worked values at 25 and 12.5 Hz steps, the 400 Hz cap)."""
+    cfg = ReceiverConfig(doppler_step_hz=step_hz)
+    got = cfg.scanned_for(fastest_hz)
     assert got.doppler_max_hz == expected_hz and got.doppler_scan == "fixed"
-    assert got.doppler_step_hz == ReceiverConfig().doppler_step_hz
+    assert got.doppler_step_hz == step_hz
 
 
 @pytest.mark.parametrize("cfg", [ReceiverConfig(doppler_scan="fixed"), ReceiverConfig(doppler_max_hz=0.0)])
