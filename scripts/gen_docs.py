@@ -315,7 +315,9 @@ BENCH_DOC = {
     "time_s": "cost per unit, s (warm: ray tracing counts the faster of two identical traces)",
     "time_unit": "`link` or `point`",
     "pareto": "on the group's Pareto front (time against the group's accuracy axis, costs "
-              f"within `COST_RTOL` = {bench.COST_RTOL:.0%} counted as equal)",
+              f"within `COST_RTOL` = {bench.COST_RTOL:.0%} counted as equal, one setting more "
+              "exact than another only by an exact one-sided sign test on the units where one "
+              f"of them alone is off, at `ACCURACY_ALPHA` = {bench.ACCURACY_ALPHA:g})",
     "power_dev_db_p50": "ray tracing: signed median of 10 lg(P / P_ref) per serving link, dB "
                         "(negative: power the setting misses)",
     "power_absdev_db_p90": "ray tracing: p90 of that deviation's magnitude, dB",
@@ -513,7 +515,9 @@ def outputs_md() -> str:
             "models |",
             "", "## `veriloc-rt bench`", "",
             "`bench.md` (the tables of [performance](performance.md)), `bench.json` (`meta` "
-            "and one object per setting), `bench_pareto.png` (time against accuracy, front "
+            "and one object per setting: the CSV's columns and `off_units`, per link or point "
+            "1 where the setting is off the reference on the Pareto axis, the units of the "
+            "front's sign tests), `bench_pareto.png` (time against accuracy, front "
             "marked) and `bench.csv`, one row per setting:", ""]
     out += _columns_table(bench.CSV_FIELDS,
                           lambda c: _describe(BENCH_DOC, c, "bench.csv column"))

@@ -15,9 +15,11 @@ import math
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
+from scipy.stats import binomtest
 
-from veriloc_rt.studies.bench import COST_RTOL, PARETO_METRIC
+from veriloc_rt.studies.bench import ACCURACY_ALPHA, COST_RTOL, PARETO_METRIC
 from veriloc_rt.cli import main
 from veriloc_rt.fileio import TMP_MARK
 
@@ -67,6 +69,7 @@ def test_bench_files_and_numbers(bench_out):
     for name in ("bench.csv", "bench.json", "bench.md", "bench_pareto.png"):
         assert (bench_out / name).stat().st_size > 0, name
     rows = _rows(bench_out / "bench.csv")
+    settings = json.loads((bench_out / "bench.json").read_text())["settings"]
     assert {r["group"] for r in rows} == {"raytrace", "waveform"}
     for r in rows:
         assert math.isfinite(float(r["time_s"])) and float(r["time_s"]) > 0, r["label"]
@@ -85,12 +88,23 @@ def test_bench_files_and_numbers(bench_out):
         assert front
         # Independent of pareto_front's tie rules: the most accurate setting is always on the
         # front (the reference has 0 % off, but a cheaper setting may tie it on few points), and
-        # no front member is beaten on both axes by a clearly cheaper setting.
+        # no front member is beaten by a clearly cheaper setting that is more exact by the
+        # exact sign test on bench.json's units (scipy's binomtest, one-sided, ACCURACY_ALPHA)
         err = {id(r): float(r[PARETO_METRIC[g]]) for r in grp}
         cost = {id(r): float(r["time_s"]) for r in grp}
         assert min(err[id(r)] for r in front) == min(err.values())
+        units = {(s["group"], s["label"]): np.array(s["off_units"], bool) for s in settings
+                 if s["off_units"] is not None}
+        for r in grp:   # the JSON's units give the CSV's share
+            assert 100 * units[(g, r["label"])].mean() == pytest.approx(err[id(r)])
+
+        def resolved(o, r):   # o more exact than r
+            uo, ur = units[(g, o["label"])], units[(g, r["label"])]
+            b, c = int(np.sum(ur & ~uo)), int(np.sum(uo & ~ur))
+            return b > c and binomtest(b, b + c, 0.5, alternative="greater").pvalue < ACCURACY_ALPHA
+
         for r in front:
-            assert not any(err[id(o)] < err[id(r)] and cost[id(o)] * (1 + COST_RTOL) < cost[id(r)]
+            assert not any(resolved(o, r) and cost[id(o)] * (1 + COST_RTOL) < cost[id(r)]
                            for o in grp), r["label"]
     rt_ref = next(r for r in rows if r["group"] == "raytrace" and r["role"] == "reference")
     assert float(rt_ref["first_path_dev_m_p95"]) == 0.0

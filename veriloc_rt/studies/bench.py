@@ -63,7 +63,8 @@ from ..report.plots import plot_pareto
 log = logging.getLogger(__name__)
 
 __all__ = ["Knob", "Setting", "BenchResult", "sweep_settings", "run_bench", "pareto_front",
-           "write_bench", "patched_config", "chain_deviation", "channel_deviation"]
+           "more_exact", "write_bench", "patched_config", "chain_deviation", "channel_deviation",
+           "position_off_units", "power_off_units"]
 
 Progress = Callable[[str, int, int], None]
 
@@ -140,6 +141,13 @@ COST_RTOL = 0.10
 #: rows that do the same work (other sample rates) in each of three sweeps of 120-240 points
 #: (docs/performance.md): a bias of the order of the front's cost resolution
 TIMING_PASSES = 2
+#: accuracy resolution of the front: one setting is more exact than another only if the units
+#: off the reference for the other alone outnumber those off for it alone beyond chance, in an
+#: exact one-sided sign test at this level (McNemar's test on the paired units: the same points
+#: and noise, the same links; :func:`more_exact`). Shares a few units apart are not resolved by
+#: a sample of 120: the share of fixes off flipped sign between zero paddings 2 and 4 from one
+#: sweep to the next (docs/performance.md)
+ACCURACY_ALPHA = 0.05
 #: time-domain settings apply the paths at sample_rate / TIME_DECIMATION (clipped by the chain to
 #: the smallest FFT that holds the band)
 TIME_DECIMATION = 8
@@ -190,6 +198,8 @@ class Setting:
 
     time_s : cost per unit (``time_unit``: 'link' for ray tracing, 'point' for the chain)
     metrics : deviation statistics from the reference (None entries: not applicable)
+    off_units : [U] bool, the units (links or points) off the reference on the group's Pareto
+        axis (None: not measured)
     """
 
     group: str
@@ -201,6 +211,7 @@ class Setting:
     time_unit: str = "point"
     metrics: dict = field(default_factory=dict)
     pareto: bool = False
+    off_units: np.ndarray | None = None
 
     @property
     def label(self) -> str:
@@ -297,6 +308,23 @@ def _pct(x: np.ndarray) -> tuple[float | None, float | None]:
     return q["p50"], q["p95"]
 
 
+def position_off_units(run: BenignRun, ref: BenignRun) -> np.ndarray:
+    """[P] bool, the points whose DL fix is lost, gained or more than POSITION_TOL_M off the
+    reference's."""
+    fix, fix_r = np.isfinite(run.pos[:, 0]), np.isfinite(ref.pos[:, 0])
+    off = fix != fix_r
+    both = fix & fix_r
+    off[both] |= np.linalg.norm(run.pos - ref.pos, axis=1)[both] > POSITION_TOL_M
+    return off
+
+
+def power_off_units(cir, ref_cir, points: np.ndarray) -> np.ndarray:
+    """[L] bool, the serving links whose received power is more than POWER_TOL_DB off the
+    reference's, or lost or gained (an infinite deviation)."""
+    d = lm.link_deviation(lm.cir_link_arrays(cir, points), lm.cir_link_arrays(ref_cir, points))
+    return np.abs(d["power_dev_db"]) > POWER_TOL_DB
+
+
 def chain_deviation(run: BenignRun, ref: BenignRun) -> dict:
     """Deviation of a setting's chain outputs from the reference's on the same points: RSTD
     (``rstd_dev_m_p50``/``_p95``, m), AoA (``aoa_dev_deg_*``), position (``position_dev_m_*``
@@ -315,8 +343,7 @@ def chain_deviation(run: BenignRun, ref: BenignRun) -> dict:
     out["position_dev_m_p50"], out["position_dev_m_p95"] = _pct(pos)
     fix, fix_r = np.isfinite(run.pos[:, 0]), np.isfinite(ref.pos[:, 0])
     out["fix_mismatch_pct"] = float(100 * np.mean(fix != fix_r))
-    off = (fix != fix_r)
-    off[both] |= pos > POSITION_TOL_M
+    off = position_off_units(run, ref)
     out["position_off_pct"] = float(100 * np.mean(off)) if off.size else None
     out["decision_agreement_pct"] = float(100 * np.mean(run.decisions == ref.decisions))
     return out
@@ -452,6 +479,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         for s in rt:
             s.metrics = channel_deviation(cirs[s.key], cirs[ref.key], idx)
             s.metrics.update(chain_deviation(runs[s.key], runs[ref.key]))
+            s.off_units = power_off_units(cirs[s.key], cirs[ref.key], idx)
     # waveform group, on the config's CIRs
     wf = [s for s in settings if s.group == "waveform"]
     for s in sorted(wf, key=lambda s: s.role != "reference"):
@@ -470,10 +498,12 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         # the noise floor is the config's setting against itself with other noise draws
         base = own if s.role == "noise floor" else ref
         s.metrics = chain_deviation(runs[s.key], runs[base.key])
+        s.off_units = position_off_units(runs[s.key], runs[base.key])
     for g in {s.group for s in settings}:
         grp = [s for s in settings if s.group == g and s.role != "noise floor"]
         front = pareto_front([s.time_s for s in grp], [s.metrics.get(PARETO_METRIC[g]) for s in grp],
-                             cost_rtol=COST_RTOL)
+                             cost_rtol=COST_RTOL,
+                             better=more_exact([s.off_units for s in grp], ACCURACY_ALPHA))
         for s, f in zip(grp, front):
             s.pareto = bool(f)
     meta = {"points": idx.tolist(), "num_points": int(idx.size), "quick": quick,
@@ -484,7 +514,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     return BenchResult(settings, meta)
 
 
-def pareto_front(cost, error, cost_rtol: float = 0.0) -> np.ndarray:
+def pareto_front(cost, error, cost_rtol: float = 0.0, better=None) -> np.ndarray:
     """[n] bool, not dominated: no other point is at most as costly and at most as wrong, and
     strictly better in one. Points without an error (None/NaN) are never on the front; an
     error of 0 (the reference against itself) is a valid point.
@@ -492,19 +522,53 @@ def pareto_front(cost, error, cost_rtol: float = 0.0) -> np.ndarray:
     :param cost_rtol: relative cost resolution (>= 0): j is cheaper than i only if
         ``c_j * (1 + cost_rtol) < c_i``; costs closer than that count as equal, so j dominates i
         by cost only when clearly cheaper, or by error alone at an equal cost
+    :param better: [n, n] bool, ``better[j, i]``: j is more exact than i (the accuracy
+        resolution, :func:`more_exact`); None: a lower error. j dominates i when it is not less
+        exact and either clearly cheaper or, at an equal cost, more exact
     """
     if not cost_rtol >= 0:
         raise ValueError(f"Argument `cost_rtol` must be >= 0, not {cost_rtol}")
     c = np.asarray(cost, dtype=float)
     e = np.asarray([np.nan if v is None else v for v in error], dtype=float)
     ok = np.isfinite(c) & np.isfinite(e)
+    b = e[:, None] < e[None, :] if better is None else np.asarray(better, dtype=bool)
+    if b.shape != (c.size, c.size):
+        raise ValueError(f"Argument `better` must be [{c.size}, {c.size}], not {b.shape}")
     front = np.zeros(c.size, dtype=bool)
     for i in np.flatnonzero(ok):
         cheaper = c * (1 + cost_rtol) < c[i]
         same = ~cheaper & (c <= c[i] * (1 + cost_rtol))
-        dom = ok & (e <= e[i]) & (cheaper | (same & (e < e[i])))
+        dom = ok & ~b[i, :] & (cheaper | (same & b[:, i]))
         front[i] = not np.any(dom)
     return front
+
+
+def more_exact(off_units, alpha: float) -> np.ndarray:
+    """[n, n] bool, ``[j, i]``: setting j is off the reference on fewer of the same units than
+    setting i beyond chance. Of the units where exactly one of the two is off (the discordant
+    pairs of McNemar's test), i alone is off on b and j alone on c; j is more exact when
+    P(X >= b) < ``alpha`` for X ~ Binomial(b + c, 1/2) (the exact one-sided sign test,
+    :func:`scipy.stats.binomtest`). Settings without units (None) are never more exact, nor
+    less.
+
+    :param off_units: per setting [U] bool (the same U units for all) or None
+    """
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"Argument `alpha` must be in (0, 1), not {alpha}")
+    from scipy.stats import binomtest
+
+    n = len(off_units)
+    out = np.zeros((n, n), dtype=bool)
+    for j, fj in enumerate(off_units):
+        for i, fi in enumerate(off_units):
+            if i == j or fj is None or fi is None:
+                continue
+            fj, fi = np.asarray(fj, dtype=bool), np.asarray(fi, dtype=bool)
+            if fj.shape != fi.shape:
+                raise ValueError(f"settings {j} and {i} have {fj.shape} and {fi.shape} units")
+            b, c = int(np.sum(fi & ~fj)), int(np.sum(fj & ~fi))
+            out[j, i] = b > c and binomtest(b, b + c, 0.5, alternative="greater").pvalue < alpha
+    return out
 
 
 # -- reporting -------------------------------------------------------------------------------
@@ -523,6 +587,8 @@ def _row(s: Setting) -> dict:
     r = {"group": s.group, "knob": s.knob, "value": s.value, "role": s.role, "label": s.label,
          "time_s": s.time_s, "time_unit": s.time_unit, "pareto": s.pareto}
     r.update({k: s.metrics.get(k) for k in CSV_FIELDS if k not in r})
+    # bench.json only: which units are off on the Pareto axis (1), to redo the front's tests
+    r["off_units"] = None if s.off_units is None else np.asarray(s.off_units, dtype=int).tolist()
     return r
 
 

@@ -216,3 +216,48 @@ def test_diffuse_scattering_is_swept_but_not_in_the_reference():
     from veriloc_rt.studies.bench import patched_config
     c = patched_config(config_from_dict({}), rough[0].patch)
     assert c.propagation.raytrace.diffuse_reflection and c.propagation.raytrace.materials.scattering_coefficient == 0.3
+
+
+def test_more_exact_is_the_exact_one_sided_sign_test_by_hand():
+    import numpy as np
+
+    from veriloc_rt.studies.bench import more_exact
+
+    def units(only_a, only_b, both, n=120):
+        a, b = np.zeros(n, bool), np.zeros(n, bool)
+        a[:only_a] = True
+        b[only_a:only_a + only_b] = True
+        a[100:100 + both] = b[100:100 + both] = True
+        return a, b
+
+    # 4 discordant units, all against a: P(X >= 4 | 4, 1/2) = 1/16 = 0.0625 > 0.05: unresolved
+    a, b = units(4, 0, 3)
+    assert not more_exact([a, b], 0.05).any()
+    # 5 of 5: 1/32 = 0.031 < 0.05: b is more exact than a, not the reverse
+    a, b = units(5, 0, 3)
+    assert more_exact([a, b], 0.05).tolist() == [[False, False], [True, False]]
+    # 7 against 1: P(X >= 7 | 8, 1/2) = (8 + 1) / 256 = 0.035: resolved; 6 against 2: 37/256 = 0.14: not
+    a, b = units(7, 1, 0)
+    assert more_exact([a, b], 0.05)[1, 0]
+    a, b = units(6, 2, 0)
+    assert not more_exact([a, b], 0.05)[1, 0]
+    # units shared by both (concordant) do not count; a setting without units is never resolved
+    assert not more_exact([a, None], 0.05).any()
+    with pytest.raises(ValueError, match="alpha"):
+        more_exact([a, b], 0.0)
+
+
+def test_pareto_front_accuracy_resolution():
+    # (cost, error): (1.00, 5.8) against (1.07, 2.5), within a 10 % cost resolution. Compared by
+    # their shares the dearer one is more exact and dominates; when the sign test does not
+    # resolve them (better all False between 0 and 1), both stay. (0.90, 9.0), clearly cheaper
+    # and resolvably less exact than both, stays too; (2.0, 0.0) is the reference.
+    import numpy as np
+
+    cost, err = [1.00, 1.07, 0.90, 2.0], [5.8, 2.5, 9.0, 0.0]
+    assert pareto_front(cost, err, cost_rtol=0.10).tolist() == [False, True, True, True]
+    better = np.array(err)[:, None] < np.array(err)[None, :]
+    better[1, 0] = better[0, 1] = False
+    assert pareto_front(cost, err, cost_rtol=0.10, better=better).tolist() == [True, True, True, True]
+    with pytest.raises(ValueError, match="better"):
+        pareto_front(cost, err, better=np.zeros((3, 3), bool))
