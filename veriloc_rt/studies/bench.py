@@ -33,7 +33,9 @@ shows how much deviation noise alone produces.
 The Pareto front (time against :data:`PARETO_METRIC`: for ray tracing the share of links whose
 received power is lost or more than 3 dB off the reference's, for the waveform the share of points
 whose DL fix is lost, gained or more than 1 m off the reference's; costs within
-:data:`COST_RTOL` count as equal) is marked per group; the chart, a CSV,
+:data:`COST_RTOL` count as equal, and one setting is more exact than another only by a sign
+test on the units where one of them alone is off, :data:`ACCURACY_ALPHA`) is marked per group;
+the chart, a CSV,
 JSON and a markdown table are written by :func:`write_bench`.
 """
 
@@ -97,7 +99,8 @@ KNOBS = (
     Knob("waveform", "domain", "channel.domain", ("frequency", "time")),
     Knob("waveform", "doppler_max_hz", "receiver.doppler_max_hz", (0.0, 400.0)),
     Knob("waveform", "doppler_scan", "receiver.doppler_scan", ("channel", "fixed")),
-    Knob("waveform", "doppler_step_hz", "receiver.doppler_step_hz", (100.0, 50.0, 25.0, 12.5, 6.25)),
+    Knob("waveform", "doppler_step_hz", "receiver.doppler_step_hz",
+         (100.0, 50.0, 25.0, 12.5, 6.25)),
     Knob("waveform", "upsample", "receiver.upsample", (1, 2, 4, 8)),
 )
 #: the accuracy axis of each group's Pareto front: what the group's knobs act on, as the share
@@ -557,13 +560,13 @@ def more_exact(off_units, alpha: float) -> np.ndarray:
         raise ValueError(f"Argument `alpha` must be in (0, 1), not {alpha}")
     from scipy.stats import binomtest
 
-    n = len(off_units)
+    units = [None if u is None else np.asarray(u, dtype=bool) for u in off_units]
+    n = len(units)
     out = np.zeros((n, n), dtype=bool)
-    for j, fj in enumerate(off_units):
-        for i, fi in enumerate(off_units):
+    for j, fj in enumerate(units):
+        for i, fi in enumerate(units):
             if i == j or fj is None or fi is None:
                 continue
-            fj, fi = np.asarray(fj, dtype=bool), np.asarray(fi, dtype=bool)
             if fj.shape != fi.shape:
                 raise ValueError(f"settings {j} and {i} have {fj.shape} and {fi.shape} units")
             b, c = int(np.sum(fi & ~fj)), int(np.sum(fj & ~fi))
