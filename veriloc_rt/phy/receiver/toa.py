@@ -17,12 +17,13 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
 3. forms the delay profile sum_a |C_a(tau)|^2 (zero-padded IFFT on a grid), detects the BS if
    its peak clears the noise floor by ``hearability_db`` and by the chi-square(2A) quantile
    that noise alone exceeds with probability ``detection_false_alarm`` over all searched cells
-   (delay bins / upsample x Doppler hypotheses); the floor is exact: sigma^2 sum_k
-   w_k^2 |X_k|^2 per block and antenna, with sigma^2 the per-RE noise variance;
+   (delay bins / upsample x Doppler cells, :meth:`ToAEstimator.doppler_cells`: a count that does
+   not depend on the scan's step); the floor is exact: sigma^2 sum_k w_k^2 |X_k|^2 per block
+   and antenna, with sigma^2 the per-RE noise variance;
 4. picks the ToA of a detected BS (an undetected one keeps the scan's Doppler and the strongest
    lag): the strongest peak, or the first local peak above both a noise-derived
    threshold (chi-square with 2A degrees of freedom at ``false_alarm`` per bin and Doppler
-   hypothesis) and ``first_path_rel_db`` below the strongest, on a Hann-windowed delay-Doppler
+   cell) and ``first_path_rel_db`` below the strongest, on a Hann-windowed delay-Doppler
    map maximised over Doppler per delay bin (the paths of one link spread over +-f_D,max, more
    than the frame's Doppler resolution, so one common Doppler could null the first path); the
    first path's own Doppler then replaces the scan's;
@@ -440,6 +441,15 @@ def _antenna_power(q: np.ndarray, scratch: bool = False) -> np.ndarray:
     return s.sum(axis=-2, dtype=np.float64)
 
 
+#: Doppler cells per Doppler resolution 1 / T (T: the blocks' time aperture) that the detection
+#: thresholds count over the scanned span, whatever the scan's step: the maximum over a finely
+#: sampled Doppler axis behaves like the maximum over this many cells per resolution. Counting
+#: the scan's hypotheses instead made noise-only false alarms fall with a finer step (0.18 at a
+#: 50 Hz step to 0.03 at 6.25 Hz, at a design 0.1); with 4 per resolution they are the design
+#: value at every step (tests/unit/phy/receiver/test_toa.py, docs/performance.md)
+DOPPLER_CELLS_PER_RESOLUTION = 4.0
+
+
 class ToAEstimator:
     """Doppler, ToA and hearability of one transmitter from its :class:`CrossSpectra`.
 
@@ -579,13 +589,26 @@ class ToAEstimator:
                 out[:, :, ix] = prod
         return out
 
-    def _first_crossing(self, metric: np.ndarray, floor: float, n_hyp: int, dof: float) -> int:
+    def doppler_cells(self, tc: np.ndarray) -> float:
+        """Doppler cells the thresholds count: 1 + span x T x :data:`DOPPLER_CELLS_PER_RESOLUTION`
+        (span: the scanned hypotheses' extent, Hz; T: the blocks' time aperture, s), 1 without a
+        scan. Independent of the step: a finer step resolves the same noise maximum, it does not
+        add independent cells.
+
+        :param tc: [B] float64, s, the block times
+        """
+        if self.hypotheses is None or tc.size < 2:
+            return 1.0
+        span = float(self.hypotheses[-1] - self.hypotheses[0])
+        return 1.0 + span * float(tc.max() - tc.min()) * DOPPLER_CELLS_PER_RESOLUTION
+
+    def _first_crossing(self, metric: np.ndarray, floor: float, n_cells: float, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
 
         The noise threshold is the chi-square(dof) quantile at ``false_alarm`` per bin,
-        divided over the ``n_hyp`` Doppler hypotheses each bin is the maximum of.
+        divided over the ``n_cells`` Doppler cells each bin is the maximum of.
         """
-        gamma = chdtri(dof, self.cfg.false_alarm / n_hyp) / dof
+        gamma = chdtri(dof, self.cfg.false_alarm / n_cells) / dof
         thr = max(gamma * floor, metric.max() * 10 ** (-self.cfg.first_path_rel_db / 10))
         above = np.flatnonzero(metric >= thr)
         i = int(above[0]) if above.size else int(metric.argmax())
@@ -661,7 +684,7 @@ class ToAEstimator:
         peak = float(m_rect.max())
         tiny = 1e-30 + 1e-15 * peak
         snr_db = 10 * np.log10(peak / max(floor_rect, tiny)) if peak > 0 else -np.inf
-        n_cells = max(lags.size / cfg.upsample, 1.0) * (nus.size if cfg.doppler_max_hz > 0 else 1)
+        n_cells = max(lags.size / cfg.upsample, 1.0) * self.doppler_cells(tc)
         gamma_det = chdtri(dof, cfg.detection_false_alarm / n_cells) / dof
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
@@ -708,7 +731,7 @@ class ToAEstimator:
                 idx1, lags1, n1 = idx, lags, n_up
                 dmap = self.lag_power(g_nu, idx1, lags1, n1, layout.win32)  # [V, L1]
                 coarse = dmap.max(axis=0)
-                i1 = self._first_crossing(coarse, floor, nus.size, dof)
+                i1 = self._first_crossing(coarse, floor, self.doppler_cells(tc), dof)
                 col = dmap[:, i1]
                 v = int(col.argmax())
                 nu_fp = float(nus[v])
