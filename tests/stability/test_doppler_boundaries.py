@@ -3,7 +3,7 @@
 Three single-path links at the geometric delays (the analytic CIR of
 tests/integration/test_chain.py), all with the same Doppler nu, 10-slot PRS frame (12 PRS
 symbols per 1 ms slot), frequency-domain chain, thermal noise, the receiver's Doppler scan
-+-400 Hz in 12.5 Hz steps. 400 Hz at 3.5 GHz is 34 m/s = 123 km/h head-on.
++-400 Hz in 25 Hz steps. 400 Hz at 3.5 GHz is 34 m/s = 123 km/h head-on.
 
 Independent reason: the receiver integrates the per-symbol correlations coherently over the
 frame at the scanned Doppler; a residual Doppler delta costs the array factor of the PRS symbol
@@ -14,8 +14,8 @@ Boundaries found (seeded):
   4.3 Hz (std ~2.5 Hz at this SNR), ToA within 3.2 m, no SNR loss (peak 16.5-16.7 dB).
 * past the scan edge the fine correction (capped at one step) no longer reaches, and the
   peak SNR falls by the array factor of nu - 400 Hz: measured 1.4 / 2.8 / 4.8 / 7.3 dB at
-  440 / 450 / 460 / 470 Hz against 2.4 / 3.9 / 5.9 / 8.7 dB predicted (12.5 Hz steps; 2.1 /
-  3.6 / 5.6 / 8.1 dB with 25 Hz steps). With the 8 dB hearability threshold, detection is lost
+  440 / 450 / 460 / 470 Hz against 2.4 / 3.9 / 5.9 / 8.7 dB predicted with 12.5 Hz steps
+  (2.1 / 3.6 / 5.6 / 8.1 dB with 25 Hz steps). With the 8 dB hearability threshold, detection is lost
   between 460 and 480 Hz (predicted 470 Hz = 40 m/s = 145 km/h head-on); symmetric for
   negative Doppler.
 * the PRS repeats every 1 ms slot, so the Doppler is ambiguous modulo 1 kHz: at 1000 Hz

@@ -112,10 +112,10 @@ class ReceiverConfig:
     doppler_max_hz: float = param(400.0, "the largest Doppler scan half-range the UE supports "
                                   "(0 disables the scan); the run's scan: doppler_scan",
                                   lo=0.0, hi=5000.0)
-    doppler_step_hz: float = param(12.5, "Doppler scan step (the frame's Doppler resolution is "
-                                   "1 / frame length = 100 Hz; the steps' straddle loss moves "
-                                   "first-path decisions near the threshold: "
-                                   "docs/performance.md)", lo=1.0, hi=1000.0, lo_open=False)
+    doppler_step_hz: float = param(25.0, "Doppler scan step (the frame's Doppler resolution is "
+                                   "1 / frame length = 100 Hz; the thresholds do not depend on "
+                                   "it, its straddle loss does: docs/performance.md)",
+                                   lo=1.0, hi=1000.0, lo_open=False)
     doppler_scan: str = param("channel", "'channel': a run scans +-(its fastest Doppler + one "
                               "step), in whole steps and at most doppler_max_hz: the largest "
                               "|Doppler| of its BS -> UE and adversary -> UE paths, relayed ones "

@@ -26,7 +26,8 @@ the time-domain front end, per-RE products ``Y X*`` for the frequency-domain one
    cell) and ``first_path_rel_db`` below the strongest, on a Hann-windowed delay-Doppler
    map maximised over Doppler per delay bin (the paths of one link spread over +-f_D,max, more
    than the frame's Doppler resolution, so one common Doppler could null the first path); the
-   first path's own Doppler then replaces the scan's;
+   first path's own Doppler then replaces the scan's when they are more than a quarter of the
+   Doppler resolution apart;
 5. refines it below the grid step by parabolic interpolation on exact evaluations of the profile.
 """
 
@@ -448,6 +449,12 @@ def _antenna_power(q: np.ndarray, scratch: bool = False) -> np.ndarray:
 #: 50 Hz step to 0.03 at 6.25 Hz, at a design 0.1); with 4 per resolution they are the design
 #: value at every step (tests/unit/phy/receiver/test_toa.py, docs/performance.md)
 DOPPLER_CELLS_PER_RESOLUTION = 4.0
+#: the first path's own Doppler (a parabola on the delay-Doppler map's grid) replaces the scan's
+#: (refined on the strongest path's block phases) only when they lie further apart than this
+#: share of the Doppler resolution 1 / T (a quarter: 0.9 dB of derotation loss, sinc^2(1/4)):
+#: closer, they are the same path's and the scan's is the finer estimate. A rule in scan steps
+#: made the fixes depend on the step (docs/performance.md)
+FIRST_PATH_DOPPLER_TOLERANCE = 0.25
 
 
 class ToAEstimator:
@@ -602,6 +609,17 @@ class ToAEstimator:
         span = float(self.hypotheses[-1] - self.hypotheses[0])
         return 1.0 + span * float(tc.max() - tc.min()) * DOPPLER_CELLS_PER_RESOLUTION
 
+    @staticmethod
+    def doppler_tolerance_hz(tc: np.ndarray) -> float:
+        """How far the first path's Doppler must lie from the scan's to replace it, Hz:
+        :data:`FIRST_PATH_DOPPLER_TOLERANCE` / T (T: the blocks' time aperture; infinite for one
+        block, which resolves no Doppler).
+
+        :param tc: [B] float64, s, the block times
+        """
+        aperture = float(tc.max() - tc.min()) if tc.size > 1 else 0.0
+        return FIRST_PATH_DOPPLER_TOLERANCE / aperture if aperture > 0 else np.inf
+
     def _first_crossing(self, metric: np.ndarray, floor: float, n_cells: float, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
 
@@ -737,7 +755,7 @@ class ToAEstimator:
                 nu_fp = float(nus[v])
                 if 0 < v < nus.size - 1:
                     nu_fp += cfg.doppler_step_hz * _parabola(*col[v - 1:v + 2])
-                if abs(nu_fp - nu) > cfg.doppler_step_hz:   # the first path's own Doppler
+                if abs(nu_fp - nu) > self.doppler_tolerance_hz(tc):   # the first path's own Doppler
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
                     g = cs.combine(rot)
