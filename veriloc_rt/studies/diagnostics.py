@@ -53,6 +53,14 @@ class BenignRun:
     decisions: np.ndarray
     seconds_per_point: float
 
+    def same_results(self, other: "BenignRun") -> bool:
+        """Whether ``other`` (a later run of the same chain on the same points) gave these
+        results: ToAs, AoAs, fixes and decisions equal, NaNs where these have NaNs."""
+        return (np.array_equal(self.points, other.points)
+                and all(np.array_equal(a, b, equal_nan=True) for a, b in
+                        ((self.toa, other.toa), (self.az, other.az), (self.pos, other.pos)))
+                and np.array_equal(self.decisions, other.decisions))
+
     @property
     def toa_bias_m(self) -> np.ndarray:
         """[P, B] float64, m, (ToA - LoS delay) c; only meaningful with a common clock, i.e. up

@@ -58,3 +58,20 @@ def test_passes_must_be_a_positive_int(drive, passes):
     cfg, geo, bs_ue, keys = drive
     with pytest.raises(ValueError, match="passes"):
         benign_chain(cfg, geo, bs_ue, keys, np.arange(3), passes=passes)
+
+
+def test_same_results_compares_every_output_with_nans_equal(drive):
+    import dataclasses
+    cfg, geo, bs_ue, keys = drive
+    one = benign_chain(cfg, geo, bs_ue, keys, np.arange(3), shared_noise=True)
+    again = benign_chain(cfg, geo, bs_ue, keys, np.arange(3), shared_noise=True)
+    assert one.same_results(again)
+    # a NaN where the first run has one is the same result; a ToA 1 ns off or a flipped
+    # decision is not
+    toa = one.toa.copy()
+    toa[0, 0] = np.nan
+    assert dataclasses.replace(one, toa=toa).same_results(dataclasses.replace(again, toa=toa.copy()))
+    assert not one.same_results(dataclasses.replace(again, toa=again.toa + 1e-9))
+    flipped = again.decisions.copy()
+    flipped[1, 2] = ~flipped[1, 2]
+    assert not one.same_results(dataclasses.replace(again, decisions=flipped))
