@@ -16,7 +16,8 @@ margin):
 * waveform and receiver (group ``waveform``, on the CIRs of the config's own propagation
   setting): sample rate, slots per frame, time vs frequency domain, Doppler scan (on/off, step)
   and the delay-profile zero padding. Cost: the chain's CPU seconds per point (the least of
-  :data:`TIMING_PASSES` passes in the frequency domain). Deviation: estimated
+  :data:`TIMING_PASSES` passes, round robin over the
+  frequency-domain settings). Deviation: estimated
   first-path delay and AoA per BS, DL position, decisions.
 
 Decisions per point (benign): fix obtained, HMAC tags of every BS valid, ABSA (AoA against the
