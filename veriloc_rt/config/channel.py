@@ -106,7 +106,8 @@ class ReceiverConfig:
                                   lo=0.0, hi=60.0)
     detection_false_alarm: float = param(1e-3, "probability that noise alone is detected as a BS "
                                          "in one search (all delay bins and Doppler "
-                                         "hypotheses); sets a chi-square(2 x antennas) "
+                                         "cells, 4 per Doppler resolution whatever the "
+                                         "step); sets a chi-square(2 x antennas) "
                                          "threshold applied on top of hearability_db",
                                          lo=1e-12, hi=0.5)
     doppler_max_hz: float = param(400.0, "the largest Doppler scan half-range the UE supports "
