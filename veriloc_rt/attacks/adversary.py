@@ -121,14 +121,15 @@ class AdversarySignal:
 
     def _meaconing(self, point, frame, bs_ue, bs_adv, rng) -> np.ndarray:
         bs_ids = tuple(int(b) for b in bs_ue.tx_index[point])
-        grids = self.chain.frame_signals(bs_ids, frame).grids
+        sig = self.chain.frame_signals(bs_ids, frame)
+        grids = sig.grids
         ch = self.cfg.channel
         powers = equal_arrival_powers(Links.from_cir(bs_ue, point).power_gain(),
                                       float(dbm_to_watt(ch.bs_max_power_dbm)), ch.power_control)
         y = self.relay_rx_gain * apply_frequency(Links.from_cir(bs_adv, point), grids,
                                                  re_amplitude(powers * self.chain.bs_power_factor,
                                                               self.ofdm), self.ofdm,
-                                                 self.slots, 0.0)[0]
+                                                 self.slots, 0.0, sig.occupied)[0]
         y = add_noise(y, self.adv_noise_var, rng)
         # AGC over the whole input (signal + noise): RE power p means carrier power
         # p N_sc / N_fft (channel module's convention), so the gain is the same as on IQ

@@ -271,7 +271,7 @@ def group_index(rows: np.ndarray, cols: np.ndarray) -> tuple:
 
 
 def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofdm: OFDM, slots,
-                    t0: float) -> np.ndarray:
+                    t0: float, occupied: np.ndarray | None = None) -> np.ndarray:
     """Received resource grid, noiseless: sum over links of a_l H_l X_l.
 
     H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
@@ -280,9 +280,13 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
+    :param occupied: [num_links, num_slots, 14, num_subcarriers] bool, ``grids != 0`` when the
+        caller knows it (a transmitter's REs: :meth:`PRSTransmitter.occupied`), else None
     :returns: [num_ant, num_slots, 14, num_subcarriers] complex128
     """
     grids = np.asarray(grids)
+    if occupied is not None and occupied.shape != grids.shape:
+        raise ValueError(f"Argument `occupied` {occupied.shape} must have the shape of `grids` {grids.shape}")
     if grids.shape[0] != links.num_links:
         raise ValueError(f"Argument `grids` has {grids.shape[0]} links, `links` {links.num_links}")
     t = symbol_times(ofdm, slots, t0)
@@ -297,7 +301,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
                     links.valid[li:li + 1])
         response = _LinkResponses(one, t0)
-        occ = x != 0   # a dense grid (a jammer's noise) gains nothing from groups
+        # a dense grid (a jammer's noise) gains nothing from groups
+        occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
         if groups is None:
             v = np.multiply(response(f, flat_t), amp)      # (amp * h) * x, in one new array

@@ -93,6 +93,7 @@ class PRSTransmitter:
         self.ofdm = OFDM(nr)
         self._standard: dict[tuple, np.ndarray] = {}
         self._encrypted: dict[tuple, np.ndarray] = {}
+        self._occupied: dict[tuple, tuple] = {}
         self.modem = (TagModem(security.tag_scheme, self.layout.num_symbols * self.layout.res_per_symbol,
                                security.tag_fill, security.ldpc_iterations, security.ldpc_method)
                       if self.tags else None)
@@ -134,6 +135,38 @@ class PRSTransmitter:
             self._standard[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots)
             self._standard[ck].setflags(write=False)
         return self._standard[ck].copy()
+
+    def occupied(self, slots: Sequence[int] | None = None) -> tuple[np.ndarray, tuple]:
+        """The REs the frame's signals fill, the same in every frame (kept per slots, read-only).
+
+        A PRS RE carries a QPSK symbol, (+-1 +- j) / sqrt(2), never 0, standard or encrypted; a
+        tag RE carries one where the modem places a codeword symbol (every tag RE with fill
+        'repeat', the first E / 2 with 'single'). So these masks are ``grids != 0`` and
+        ``replica != 0`` of every frame, without comparing a grid's values (a receiver uses them to
+        find the REs it reads).
+
+        :return: (grids [num_bs, num_slots, 14, num_subcarriers] bool, as :meth:`__call__`'s
+            grids; replicas: per BS [num_slots, 14, num_subcarriers] bool, as :meth:`replica`'s)
+        """
+        slots = self.frame_slots(slots)
+        key = tuple(slots)
+        if key not in self._occupied:
+            lay, n = self.layout, len(slots)
+            reps = []
+            grids = np.zeros((self.num_bs, n, SYMBOLS_PER_SLOT, lay.num_subcarriers), dtype=bool)
+            for bs in range(self.num_bs):
+                rep = np.broadcast_to(lay.prs_mask(bs), grids.shape[1:]).copy()
+                rep.flags.writeable = False
+                reps.append(rep)
+                grids[bs] = rep
+                if self.tags:
+                    used = np.zeros(lay.num_symbols * lay.res_per_symbol, dtype=bool)
+                    used[:self.modem.copy_index.size] = True
+                    k = lay.tag_subcarriers(bs)
+                    grids[bs][:, lay.symbols[:, None], k] = used.reshape(k.shape)
+            grids.flags.writeable = False
+            self._occupied[key] = (grids, tuple(reps))
+        return self._occupied[key]
 
     def tag_symbols(self, bs: int, frame: int, slot: int) -> np.ndarray:
         """QPSK tag symbols of BS ``bs`` for one slot, in tag-RE order (symbol, subcarrier).

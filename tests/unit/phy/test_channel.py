@@ -287,6 +287,12 @@ def test_apply_frequency_equals_the_scatter_add_bit_for_bit():
     got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
     want = _scatter_add_reference(links, grids, amps, ofdm, slots, 0.9e-6)
     np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+    # the transmitter's masks in place of the values' comparison: the same bits
+    occ = tx.occupied(slots)[0]
+    given = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6, occ[[0, 0, 1, 2]])
+    np.testing.assert_array_equal(given.view(np.int64), want.view(np.int64))
+    with pytest.raises(ValueError, match="occupied"):
+        apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6, occ)
 
 
 def test_a_links_response_is_computed_once_and_kept_exactly(frame):

@@ -120,3 +120,22 @@ def test_tag_channel_noise_estimate_is_scale_free(keys):
             _, nv = estimate_tag_channel(c * y, lay, bs, rep)
             assert nv / c**2 == pytest.approx(nv1, rel=1e-9)
             assert ver(c * y, bs, 5, 3) == ver(y, bs, 5, 3)
+
+
+@pytest.mark.parametrize("sec", [dict(tag_scheme="none"), dict(tag_scheme="hmac", tag_fill="repeat"),
+                                 dict(tag_scheme="ds", tag_fill="single", encrypted=(True, False, True))])
+def test_occupied_masks_are_the_grids_and_replicas_nonzero_res_in_every_frame(keys, sec):
+    # the receivers read these masks instead of comparing the grids' values: they must be the
+    # values' own nonzero pattern, exactly, whatever the frame (PRS encrypted or not, tags
+    # repeated over every tag RE or sent once), and per requested slots
+    _, _, tx = make(keys, **sec)
+    for frame, slots in ((0, None), (4_000_000_000, [3, 7])):
+        grids_occ, reps_occ = tx.occupied(slots)
+        np.testing.assert_array_equal(grids_occ, tx(frame, slots) != 0)
+        for bs in range(3):
+            np.testing.assert_array_equal(reps_occ[bs], tx.replica(bs, frame, slots) != 0)
+            np.testing.assert_array_equal(reps_occ[bs], tx.replica(bs, frame, slots, not sec.get("encrypted", (False,) * 3)[bs]) != 0)
+        assert not grids_occ.flags.writeable and not any(r.flags.writeable for r in reps_occ)
+    # single fill leaves tag REs empty, so the grid's mask is not the layout's
+    if sec.get("tag_fill") == "single":
+        assert np.count_nonzero(tx.occupied()[0][0]) < 2 * np.count_nonzero(tx.occupied()[1][0])

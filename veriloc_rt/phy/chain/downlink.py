@@ -160,8 +160,9 @@ class DownlinkChannel:
 
         def compute():
             if self.channel.domain == "frequency":
+                occ = None if frame.occupied is None else frame.occupied[:, :num_slots]
                 x = apply_frequency(dl.links, frame.grids[:, :num_slots], dl.amplitudes, self.ofdm,
-                                    self.slots[:num_slots], t0)
+                                    self.slots[:num_slots], t0, occ)
             else:
                 x = apply_time(dl.links, frame.waveform, dl.amplitudes, self.ofdm.sample_rate_hz, t0,
                                self.buffer_samples, self.decimation)
@@ -191,9 +192,10 @@ class DownlinkChannel:
                 return Received(base, None)
             slots = self.slots[:m]
             if sig.ndim == 3:   # per RE: nothing reaches the REs its grid leaves empty
-                y = apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0)
+                touched = sig[:m] != 0
+                y = apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0, touched[None])
                 y += base   # (base + y, in y's own array)
-                return Received(y, None, base, sig[:m] != 0)
+                return Received(y, None, base, touched)
             iq = apply_time(adv, sig[None], amp, fs, t0, self.frame_samples, self.decimation)
             return Received(base + self.ofdm.demodulate(iq, self.slots)[:, :m], None)
         iq = base

@@ -70,11 +70,17 @@ class FrameSignals:
     waveform : [num_bs, num_samples] complex128, the grids OFDM-modulated (time domain only,
         else None)
     replicas : tuple of [num_slots, 14, num_subcarriers] complex128, each BS's local PRS replica
+    occupied : [num_bs, num_slots, 14, num_subcarriers] bool, ``grids != 0`` (read-only; None:
+        not known, compare the values)
+    replica_occupied : tuple of [num_slots, 14, num_subcarriers] bool, ``replica != 0`` per BS
+        (read-only; None: not known)
     """
 
     grids: np.ndarray
     waveform: np.ndarray | None
     replicas: tuple
+    occupied: np.ndarray | None = None
+    replica_occupied: tuple | None = None
 
 
 class FrameSource:
@@ -125,5 +131,5 @@ class FrameSource:
             wave = self.ofdm.modulate(grids, self.slots) if self.time_domain else None
             enc = None if replica == "own" else replica == "encrypted"
             reps = tuple(tx.replica(b, frame, self.slots, enc) for b in range(self.nr.num_bs))
-            self._last = (key, FrameSignals(grids, wave, reps))
+            self._last = (key, FrameSignals(grids, wave, reps, *tx.occupied(self.slots)))
         return self._last[1]

@@ -170,7 +170,7 @@ class PositioningChain:
                     if verifier is not None else np.zeros(self.num_bs, dtype=bool))
             clock("tags")
             return replace(given, tags_valid=tags, tags_checked=verifier is not None)
-        timing = self.timing(rx, sig.replicas, t0)
+        timing = self.timing(rx, sig.replicas, t0, sig.replica_occupied)
         bs_pos = bs_ue.tx_pos[point]
         ue_h = float(bs_ue.rx_pos[point, 2])
         clock("toa")

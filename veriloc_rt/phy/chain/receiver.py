@@ -78,8 +78,11 @@ class TimingStage:
         #: spectra), what a call on that grid plus an adversary confined to some REs reuses
         self._benign: tuple | None = None
 
-    def __call__(self, received: Received, replicas: Sequence[np.ndarray], t0: float) -> Timing:
+    def __call__(self, received: Received, replicas: Sequence[np.ndarray], t0: float,
+                 occupied: Sequence[np.ndarray] | None = None) -> Timing:
         """:param replicas: per BS [S, 14, K] complex; t0: s, the timing reference
+        :param occupied: per BS [S, 14, K] bool, ``replica != 0`` when known (the frame's
+            :attr:`~veriloc_rt.phy.chain.frames.FrameSignals.replica_occupied`), else None
 
         A BS's estimate depends only on the received grid on its replica's REs and on the
         noise estimates from the free symbols. When ``received`` is the last benign grid plus an
@@ -97,12 +100,13 @@ class TimingStage:
             dof = noise_dof(grid, self.busy_symbols)
         ests, spectra = [], []
         for j, rep in enumerate(replicas):
-            if reuse is not None and not received.reaches(rep != 0):
+            occ = occupied[j] if occupied is not None else None
+            if reuse is not None and not received.reaches(rep != 0 if occ is None else occ):
                 ests.append(reuse[4][j])
                 spectra.append(reuse[5][j])
                 continue
             if self.channel.per_re_receiver:
-                cs = frequency_cross_spectra(grid, rep, self.ofdm, self.slots)
+                cs = frequency_cross_spectra(grid, rep, self.ofdm, self.slots, occ)
             else:
                 cs = time_cross_spectra(received.iq, rep, self.ofdm, self.slots,
                                         self.channel.timing_guard_s, self.search_window_s)

@@ -46,12 +46,15 @@ def _block_times(ofdm: OFDM, slots, s_idx: np.ndarray, l_idx: np.ndarray) -> np.
 _LAYOUTS: dict = {}
 
 
-def _replica_layout(replica: np.ndarray) -> tuple:
+def _replica_layout(replica: np.ndarray, occupied: np.ndarray | None = None) -> tuple:
     """The replica's blocks and their groups: ``(s_idx, l_idx, groups)``, ``s_idx, l_idx`` as
     :func:`block_index`, ``groups`` None (every block occupies every bin) or per group of
     :func:`~veriloc_rt.phy.channel.occupancy_groups` ``(blocks, bins, the blocks' slots, their
-    symbols, the bins as a slice or index array)`` (kept per pattern)."""
-    occ = replica != 0
+    symbols, the bins as a slice or index array)`` (kept per pattern).
+
+    :param occupied: ``replica != 0`` when the caller knows it, else None
+    """
+    occ = replica != 0 if occupied is None else occupied
 
     def make():
         s_idx, l_idx = np.nonzero(np.any(occ, axis=-1))
@@ -63,32 +66,47 @@ def _replica_layout(replica: np.ndarray) -> tuple:
     return kept(_LAYOUTS, occ.tobytes() + str(occ.shape).encode(), make)
 
 
-def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots) -> CrossSpectra:
+def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots,
+                            occupied: np.ndarray | None = None) -> CrossSpectra:
     """Per-RE cross-spectra of a received grid with a replica grid, computed on the replica's
     REs only when it leaves some empty (``CrossSpectra.parts``; a comb-6 PRS: 1/6 of them).
 
     :param rx_grid: [num_ant, num_slots, 14, num_subcarriers] complex
     :param replica: [num_slots, 14, num_subcarriers] complex (0 off the replica's REs)
+    :param occupied: [num_slots, 14, num_subcarriers] bool, ``replica != 0`` when the caller
+        knows it (:meth:`~veriloc_rt.phy.transmitter.PRSTransmitter.occupied`), else None
     """
     rx_grid = np.asarray(rx_grid)
     if rx_grid.ndim != 4 or rx_grid.shape[1:] != replica.shape:
         raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
                          "must be [A, S, 14, K] and [S, 14, K]")
-    s_idx, l_idx, groups = _replica_layout(replica)
+    if occupied is not None and occupied.shape != replica.shape:
+        raise ValueError(f"Argument `occupied` {occupied.shape} must have the shape of `replica` "
+                         f"{replica.shape}")
+    s_idx, l_idx, groups = _replica_layout(replica, occupied)
     rep = replica[s_idx, l_idx]                                   # [B, K]
     if groups is None:
         parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
+        ref_power = np.abs(rep) ** 2
     else:   # only the replica's REs: S = Y X* is zero elsewhere
         spectra = None
-        # (the grid may be a strided view: no reshape, which would copy it whole)
-        parts = tuple((b, k, (rx_grid[:, sb, lb, ix] * np.conj(rep[b, ix])[None])
-                       if isinstance(ix, slice) else
-                       rx_grid[:, sb[:, None], lb[:, None], ix[None, :]] * np.conj(rep[b[:, None], ix[None, :]])[None])
-                      for b, k, sb, lb, ix in groups)
+        ref_power = np.zeros(rep.shape)   # |X|^2: 0 off the replica's REs
+        parts = []
+        for b, k, sb, lb, ix in groups:
+            if isinstance(ix, slice):   # (the grid may be a strided view: no reshape, which
+                x = rep[b, ix]          # would copy it whole)
+                y = rx_grid[:, sb, lb, ix]
+                ref_power[b, ix] = np.abs(x) ** 2
+            else:
+                x = rep[b[:, None], ix[None, :]]
+                y = rx_grid[:, sb[:, None], lb[:, None], ix[None, :]]
+                ref_power[b[:, None], ix[None, :]] = np.abs(x) ** 2
+            parts.append((b, k, y * np.conj(x)[None]))
+        parts = tuple(parts)
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,
                         block_times=_block_times(ofdm, slots, s_idx, l_idx),
-                        ref_power=np.abs(rep) ** 2,
+                        ref_power=ref_power,
                         band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz, parts=parts)
 
 

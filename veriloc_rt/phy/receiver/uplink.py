@@ -66,6 +66,8 @@ class UplinkPositioner:
         self.slots = range(nr.slots_per_frame)
         one = srs_grid(nr.num_prb, receiver.srs_n_id, receiver.srs_comb, 0, tuple(receiver.srs_symbols))
         self.grid = np.broadcast_to(one, (len(self.slots),) + one.shape).copy()  # [S, 14, K]
+        #: [S, 14, K] bool, the SRS's REs (``grid != 0``, computed once)
+        self.occupied = self.grid != 0
         self.waveform = self.ofdm.modulate(self.grid, self.slots) if channel.domain == "time" else None
         period = 1.0 / (receiver.srs_comb * nr.subcarrier_spacing_hz)
         window = min(receiver.search_window_s, 0.9 * period - channel.timing_guard_s)
@@ -76,7 +78,7 @@ class UplinkPositioner:
         """One BS's received signal: grid [1, S, 14, K] (frequency) or IQ [1, N] (time)."""
         amp = re_amplitude([dbm_to_watt(self.channel.ue_power_dbm)], self.ofdm)
         if self.channel.domain == "frequency":
-            y = apply_frequency(link, self.grid[None], amp, self.ofdm, self.slots, t0)
+            y = apply_frequency(link, self.grid[None], amp, self.ofdm, self.slots, t0, self.occupied[None])
         else:
             n = self.waveform.shape[-1] + int(np.ceil(self.receiver.search_window_s * self.ofdm.sample_rate_hz)) + 64
             dec = max(1, min(self.channel.time_decimation, self.ofdm.fft_size // self.nr.min_fft_size))
@@ -104,7 +106,7 @@ class UplinkPositioner:
             y = self.receive(link, t0, rng)
             grid = y if self.channel.domain == "frequency" else self.ofdm.demodulate(y, self.slots)
             if self.channel.per_re_receiver:
-                cs = frequency_cross_spectra(grid, self.grid, self.ofdm, self.slots)
+                cs = frequency_cross_spectra(grid, self.grid, self.ofdm, self.slots, self.occupied)
             else:
                 cs = time_cross_spectra(y, self.grid, self.ofdm, self.slots, self.channel.timing_guard_s,
                                         self.toa.cfg.search_window_s)

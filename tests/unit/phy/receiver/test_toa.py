@@ -17,7 +17,7 @@ from veriloc_rt.phy.channel import (Links, add_noise, apply_frequency, apply_tim
 from veriloc_rt.config.channel import ReceiverConfig
 from veriloc_rt.config.nr import NRConfig
 from veriloc_rt.phy.transmitter import PRSTransmitter
-from veriloc_rt.phy.receiver.sync import (frequency_cross_spectra, noise_variance,
+from veriloc_rt.phy.receiver.sync import (block_index, frequency_cross_spectra, noise_variance,
                                           time_cross_spectra)
 from veriloc_rt.phy.receiver.toa import CrossSpectra, ToAEstimator, ZoomPlan, fft_length, zoom_plan
 from veriloc_rt.config.security import SecurityConfig
@@ -145,6 +145,18 @@ def test_first_path_finds_a_weaker_earlier_path_that_strongest_misses():
     # and 3 ns
     assert fp.toa_s == pytest.approx(0.25e-6, abs=12e-9)
     assert st.toa_s == pytest.approx(0.50e-6, abs=3e-9)
+    # the transmitter's mask of the replica in place of comparing its values: the same spectra,
+    # bit for bit, and the same estimate
+    given = frequency_cross_spectra(y, rep, ofdm, slots, tx.occupied(slots)[1][0])
+    for (b1, k1, p1), (b2, k2, p2) in zip(cs.parts, given.parts):
+        np.testing.assert_array_equal(b1, b2)
+        np.testing.assert_array_equal(k1, k2)
+        np.testing.assert_array_equal(p1.view(np.int64), p2.view(np.int64))
+    # |X|^2 of every block's bins, written on the occupied ones only: the dense formula's values
+    dense = np.abs(rep[block_index(rep)]) ** 2
+    np.testing.assert_array_equal(cs.ref_power, dense)
+    np.testing.assert_array_equal(given.ref_power, dense)
+    assert ToAEstimator(ReceiverConfig(), GUARD)(given, nv).toa_s == fp.toa_s
 
 
 #: noise-only searches and the false detections allowed: detection_false_alarm = 1e-3 per
