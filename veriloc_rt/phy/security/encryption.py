@@ -72,6 +72,29 @@ def keystream_bits(key: bytes, bs_id: int, frame: int, slot: int, symbol: int, n
     return np.unpackbits(np.frombuffer(stream, dtype=np.uint8))[:num_bits]
 
 
+def _counter_heads(bs_id: int, frame: int, slot_symbols) -> np.ndarray:
+    """The first 11 bytes of :func:`counter_block` of each (slot, symbol) pair: [num_pairs, 11]
+    uint8 (the same bytes, built as one array instead of one ``bytes`` per symbol)."""
+    head = np.frombuffer(counter_block(bs_id, frame, 0, 0)[:8], dtype=np.uint8)   # checks bs_id, frame
+    pairs = []
+    for pair in slot_symbols:
+        for v in pair:
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+                raise TypeError(f"slot and symbol must be integers, not {type(v).__name__}")
+        pairs.append(pair)
+    ss = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    for name, col in (("slot", ss[:, 0]), ("symbol", ss[:, 1])):
+        bad = (col < 0) | (col >= _LIMITS[name])
+        if np.any(bad):
+            raise ValueError(f"Argument `{name}` must be in [0, {_LIMITS[name] - 1}], not {int(col[bad][0])}")
+    out = np.empty((ss.shape[0], 11), dtype=np.uint8)
+    out[:, :8] = head
+    out[:, 8] = ss[:, 0] >> 8
+    out[:, 9] = ss[:, 0] & 0xFF
+    out[:, 10] = ss[:, 1]
+    return out
+
+
 def keystream_bits_many(key: bytes, bs_id: int, frame: int, slot_symbols, num_bits: int) -> np.ndarray:
     """:func:`keystream_bits` of several (slot, symbol) pairs of one frame, in one AES call.
 
@@ -85,8 +108,7 @@ def keystream_bits_many(key: bytes, bs_id: int, frame: int, slot_symbols, num_bi
     if len(key) not in (16, 32):
         raise ValueError(f"Argument `key` must be 16 or 32 bytes, not {len(key)}")
     nb = -(-num_bits // 128)
-    heads = np.array([np.frombuffer(counter_block(bs_id, frame, sl, sy)[:11], dtype=np.uint8)
-                      for sl, sy in slot_symbols], dtype=np.uint8).reshape(-1, 11)
+    heads = _counter_heads(bs_id, frame, slot_symbols)
     blocks = np.zeros((heads.shape[0], nb, 16), dtype=np.uint8)
     blocks[:, :, :11] = heads[:, None, :]
     j = np.arange(nb, dtype=np.uint64)

@@ -131,9 +131,20 @@ def test_keystreams_of_a_frame_in_one_call_equal_the_per_symbol_ctr_streams():
     from veriloc_rt.phy.security.encryption import keystream_bits_many
 
     key = bytes(range(32))
-    pairs = [(s, l) for s in (0, 7, 19) for l in (0, 5, 13)]
+    pairs = [(s, l) for s in (0, 7, 19) for l in (0, 5, 13)] + [(300, 255), (2**16 - 1, 1)]  # both slot bytes
     for n in (208, 5000):
         many = keystream_bits_many(key, 4095, 2**32 - 1, pairs, n)
         assert many.shape == (len(pairs), n)
         for row, (s, l) in zip(many, pairs):
             np.testing.assert_array_equal(row, keystream_bits(key, 4095, 2**32 - 1, s, l, n))
+
+
+@pytest.mark.parametrize("pair, err", [((2**16, 0), ValueError), ((0, 256), ValueError), ((-1, 0), ValueError),
+                                       ((1.0, 0), TypeError), ((0, True), TypeError)])
+def test_keystreams_of_a_frame_reject_what_a_counter_block_rejects(pair, err):
+    from veriloc_rt.phy.security.encryption import keystream_bits_many
+
+    with pytest.raises(err):
+        counter_block(1, 2, *pair)
+    with pytest.raises(err):
+        keystream_bits_many(bytes(16), 1, 2, [(0, 0), pair], 208)
