@@ -3,7 +3,8 @@
 Runs ``veriloc-rt run`` on the paper's UMa config once and on the ray-traced config twice, the
 first time with an empty propagation cache (cold) and then with it filled (warm), each in its
 own process, and prints one table from the runs' ``metrics.json`` (``timing_s``) against the
-issue's targets: UMa <= 60 s, ray tracing <= 300 s cold / <= 60 s warm, peak memory <= 4 GiB.
+issue's targets: UMa <= 60 s, ray tracing <= 300 s cold / <= 60 s warm, peak memory <= 4 GiB,
+then the ray tracer's cost per link of the cold run (its ``propagation_summary.json``).
 Stage times other than tracing are CPU seconds summed over the chain workers, so with 2 workers
 they add up to about twice the wall time they take. Usage (about half an hour on 2 cores):
 
@@ -46,7 +47,22 @@ def run_one(name: str, cfg: dict, out: Path, workers: int) -> dict:
         raise SystemExit(f"error: {name} run failed (exit {proc.returncode}); see {out}/stderr.txt")
     timing = json.loads((out / "run" / "metrics.json").read_text())["timing_s"]
     timing["wall"] = wall
+    summary = out / "run" / "propagation_summary.json"
+    stats = json.loads(summary.read_text()).get("raytrace_stats") if summary.exists() else None
+    if stats:
+        timing["raytrace_stats"] = stats
     return timing
+
+
+def tracing_line(name: str, t: dict) -> str | None:
+    """The ray tracer's cost per link of a run that traced (None: it traced nothing)."""
+    st = t.get("raytrace_stats") or {}
+    n = int(st.get("links_traced", 0))
+    if n == 0:
+        return None
+    return (f"{name}: {n} distinct links traced of the run's {st['links']}, {st['wall_s']:.0f} s wall "
+            f"({1e3 * st['wall_s'] / n:.1f} ms a link), {st['trace_s']:.0f} s of solver calls in "
+            f"{st.get('processes', 1)} processes ({1e3 * st['trace_s'] / n:.1f} ms a link in a process)")
 
 
 def peak_mib(t: dict) -> float:
@@ -99,6 +115,10 @@ def main(argv=None) -> int:
     print("| --- |" + " --- |" * 9)
     for name, t in results.items():
         print(row(name, t))
+    for name, t in results.items():
+        line = tracing_line(name, t)
+        if line:
+            print(line)
     (out / "bench_paper.json").write_text(json.dumps(results, indent=2))
     mem = max(peak_mib(t) for t in results.values())
     print(f"peak memory {mem / 1024:.2f} GiB (target {MEMORY_TARGET_MIB / 1024:.0f} GiB: "
