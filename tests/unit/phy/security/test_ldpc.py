@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy import integrate, stats
+from scipy import integrate, optimize, stats
 
-from veriloc_rt.phy.security.ldpc import NRLDPC, base_graph_2, lifted_h
+from veriloc_rt.phy.security.ldpc import DECODE_MIN_INFORMATION, NRLDPC, base_graph_2, lifted_h, llr_information
 
 DATA = Path(__file__).parent / "data"
 
@@ -107,3 +107,74 @@ def test_awgn_waterfall_k256_rate_half():
     assert b0 >= normal_approximation(0.0, 512, 256) - 3 * sigma
     assert 0.02 <= b15 <= 0.4
     assert b25 <= 0.05
+
+
+def awgn_llr_moments(mu: float) -> tuple[float, float]:
+    """E[i] and E[i^2] of i = log2(1 + e^-L), L ~ N(mu, 2 mu): consistent LLRs of a BPSK bit
+    through AWGN (+1 sent); the BI-AWGN capacity is 1 - E[i]."""
+    info = lambda L: np.log2(1 + np.exp(-L))  # noqa: E731
+    pdf = lambda L: stats.norm.pdf(L, mu, np.sqrt(2 * mu))  # noqa: E731
+    lim = (mu - 12 * np.sqrt(2 * mu), mu + 12 * np.sqrt(2 * mu))
+    return (integrate.quad(lambda L: info(L) * pdf(L), *lim)[0],
+            integrate.quad(lambda L: info(L) ** 2 * pdf(L), *lim)[0])
+
+
+def mu_at_capacity(c: float) -> float:
+    return optimize.brentq(lambda m: 1 - awgn_llr_moments(m)[0] - c, 0.01, 50.0)
+
+
+@pytest.mark.parametrize("capacity", [0.25, 0.5, 0.8])
+def test_llr_information_is_the_bi_awgn_capacity(capacity):
+    """The LLR-only estimate on consistent Gaussian LLRs is the channel's capacity (integrated
+    numerically above). Tolerance 0.01: four standard errors of a mean over 20000 bits, whose
+    per-bit information lies in [0, 1] (standard deviation <= 0.5)."""
+    mu = mu_at_capacity(capacity)
+    rng = np.random.default_rng(7)
+    sign = 1 - 2.0 * rng.integers(0, 2, 20000)
+    llr = sign * rng.normal(mu, np.sqrt(2 * mu), 20000)
+    assert llr_information(llr) == pytest.approx(capacity, abs=0.01)
+
+
+def test_decode_gate_leaves_every_outcome_as_full_belief_propagation():
+    """Words below the gate (DECODE_MIN_INFORMATION x the rate, 0.4 bits per sent bit) are not
+    decoded. At a channel capacity of 0.4 the normal approximation of the best n = 512, k = 256
+    code succeeds with probability 5e-3 (so BP on the NR code, about 1 dB worse, must fail: here
+    0 of 60 words); gated or not, every word then fails. Well above the gate (capacity 0.8) no
+    word is gated and the decoded bits are the ungated decoder's."""
+    gated, full = NRLDPC(256), NRLDPC(256, min_information=0.0)
+    assert gated.min_information == DECODE_MIN_INFORMATION == 0.8
+    m1, m2 = awgn_llr_moments(mu_at_capacity(0.4))
+    n, k = 512, 256
+    best = stats.norm.cdf((n * (1 - m1) - k + 0.5 * np.log2(n)) / np.sqrt(n * (m2 - m1 ** 2)))
+    assert best == pytest.approx(4.9e-3, rel=0.05)
+    rng = np.random.default_rng(11)
+    for capacity, words in ((0.4, 60), (0.8, 20)):
+        mu = mu_at_capacity(capacity)
+        bits = rng.integers(0, 2, (words, k), dtype=np.uint8)
+        sign = 1 - 2.0 * gated.encode(bits)
+        llr = sign * rng.normal(mu, np.sqrt(2 * mu), sign.shape)
+        below = llr_information(llr) * gated.e < 0.8 * k
+        dec_g, ok_g = gated.decode(llr)
+        dec_f, ok_f = full.decode(llr)
+        right_f = np.all(dec_f == bits, axis=1)
+        if capacity == 0.4:
+            assert 0.2 < below.mean() < 0.8        # the gate splits the words about their mean
+            assert not right_f.any() and not ok_f.any() and not ok_g.any()
+            assert not np.all(dec_g == bits, axis=1).any()
+            # gated words are the hard decisions
+            np.testing.assert_array_equal(dec_g[below], (gated_llr_total(gated, llr[below]) < 0)[:, :k])
+        else:
+            assert not below.any()
+            assert right_f.all()
+            np.testing.assert_array_equal(dec_g, dec_f)
+            np.testing.assert_array_equal(ok_g, ok_f)
+
+
+def gated_llr_total(code: NRLDPC, llr: np.ndarray) -> np.ndarray:
+    """The codeword-position LLRs the decoder starts from (sent bits summed onto their
+    positions, fillers known 0), for the hard decisions of an undecoded word."""
+    total = np.zeros((llr.shape[0], code.n))
+    for i, row in enumerate(llr):
+        np.add.at(total[i], code.positions, row)
+    total[:, code.k:code.k_full] = 40.0
+    return total
