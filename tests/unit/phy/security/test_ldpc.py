@@ -67,18 +67,28 @@ def test_lifted_h_blocks_are_shifted_identities():
     np.testing.assert_array_equal(block, np.roll(np.eye(32, dtype=np.uint8), v, axis=1))
 
 
-def normal_approximation(ebn0_db: float, n: int, k: int) -> float:
-    """BLER of the best length-n code on the BI-AWGN channel, Polyanskiy-Poor-Verdu (2010) normal
-    approximation with the 1/2 log n term: Q((n C - k + log2(n)/2) / sqrt(n V))."""
-    r = k / n
-    s2 = 1 / (2 * r * 10 ** (ebn0_db / 10))
-    mu = 2 / s2  # LLR ~ N(mu, 2 mu) for +1 sent
+def awgn_llr_moments(mu: float) -> tuple[float, float]:
+    """E[i] and E[i^2] of i = log2(1 + e^-L), L ~ N(mu, 2 mu): consistent LLRs of a BPSK bit
+    through AWGN (+1 sent); the BI-AWGN capacity is 1 - E[i], its dispersion E[i^2] - E[i]^2."""
     info = lambda L: np.log2(1 + np.exp(-L))  # noqa: E731
     pdf = lambda L: stats.norm.pdf(L, mu, np.sqrt(2 * mu))  # noqa: E731
     lim = (mu - 12 * np.sqrt(2 * mu), mu + 12 * np.sqrt(2 * mu))
-    m1 = integrate.quad(lambda L: info(L) * pdf(L), *lim)[0]
-    m2 = integrate.quad(lambda L: info(L) ** 2 * pdf(L), *lim)[0]
+    return (integrate.quad(lambda L: info(L) * pdf(L), *lim)[0],
+            integrate.quad(lambda L: info(L) ** 2 * pdf(L), *lim)[0])
+
+
+def block_error_na(mu: float, n: int, k: int) -> float:
+    """BLER of the best length-n code on the BI-AWGN channel whose LLRs have mean ``mu``,
+    Polyanskiy-Poor-Verdu (2010) normal approximation with the 1/2 log n term:
+    Q((n C - k + log2(n)/2) / sqrt(n V))."""
+    m1, m2 = awgn_llr_moments(mu)
     return float(stats.norm.sf((n * (1 - m1) - k + 0.5 * np.log2(n)) / np.sqrt(n * (m2 - m1**2))))
+
+
+def normal_approximation(ebn0_db: float, n: int, k: int) -> float:
+    """:func:`block_error_na` at Eb/N0 ``ebn0_db`` (rate k/n, BPSK: LLR mean 2 / sigma^2)."""
+    s2 = 1 / (2 * (k / n) * 10 ** (ebn0_db / 10))
+    return block_error_na(2 / s2, n, k)
 
 
 def bler(code: NRLDPC, ebn0_db: float, trials: int, rng) -> float:
@@ -109,16 +119,6 @@ def test_awgn_waterfall_k256_rate_half():
     assert b25 <= 0.05
 
 
-def awgn_llr_moments(mu: float) -> tuple[float, float]:
-    """E[i] and E[i^2] of i = log2(1 + e^-L), L ~ N(mu, 2 mu): consistent LLRs of a BPSK bit
-    through AWGN (+1 sent); the BI-AWGN capacity is 1 - E[i]."""
-    info = lambda L: np.log2(1 + np.exp(-L))  # noqa: E731
-    pdf = lambda L: stats.norm.pdf(L, mu, np.sqrt(2 * mu))  # noqa: E731
-    lim = (mu - 12 * np.sqrt(2 * mu), mu + 12 * np.sqrt(2 * mu))
-    return (integrate.quad(lambda L: info(L) * pdf(L), *lim)[0],
-            integrate.quad(lambda L: info(L) ** 2 * pdf(L), *lim)[0])
-
-
 def mu_at_capacity(c: float) -> float:
     return optimize.brentq(lambda m: 1 - awgn_llr_moments(m)[0] - c, 0.01, 50.0)
 
@@ -138,15 +138,14 @@ def test_llr_information_is_the_bi_awgn_capacity(capacity):
 def test_decode_gate_leaves_every_outcome_as_full_belief_propagation():
     """Words below the gate (DECODE_MIN_INFORMATION x the rate, 0.4 bits per sent bit) are not
     decoded. At a channel capacity of 0.4 the normal approximation of the best n = 512, k = 256
-    code succeeds with probability 5e-3 (so BP on the NR code, about 1 dB worse, must fail: here
-    0 of 60 words); gated or not, every word then fails. Well above the gate (capacity 0.8) no
-    word is gated and the decoded bits are the ungated decoder's."""
+    code succeeds with probability 5e-3 (the DS tag's 1024, 512 code 7e-5); BP on the NR code,
+    about 1 dB worse, fails (here 0 of 60 words), so gated or not every word fails. Well above
+    the gate (capacity 0.8) no word is gated and the decoded bits are the ungated decoder's."""
     gated, full = NRLDPC(256), NRLDPC(256, min_information=0.0)
     assert gated.min_information == DECODE_MIN_INFORMATION == 0.8
-    m1, m2 = awgn_llr_moments(mu_at_capacity(0.4))
-    n, k = 512, 256
-    best = stats.norm.cdf((n * (1 - m1) - k + 0.5 * np.log2(n)) / np.sqrt(n * (m2 - m1 ** 2)))
-    assert best == pytest.approx(4.9e-3, rel=0.05)
+    k = 256
+    assert 1 - block_error_na(mu_at_capacity(0.4), 512, k) == pytest.approx(4.9e-3, rel=0.05)
+    assert 1 - block_error_na(mu_at_capacity(0.4), 1024, 512) == pytest.approx(6.9e-5, rel=0.05)
     rng = np.random.default_rng(11)
     for capacity, words in ((0.4, 60), (0.8, 20)):
         mu = mu_at_capacity(capacity)
