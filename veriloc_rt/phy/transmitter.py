@@ -113,9 +113,12 @@ class PRSTransmitter:
         return out
 
     def replica(self, bs: int, frame: int, slots: Sequence[int] | None = None,
-                encrypted: bool | None = None) -> np.ndarray:
+                encrypted: bool | None = None, *, copy: bool = True) -> np.ndarray:
         """Local PRS replica of serving BS ``bs`` (default: encrypted iff the BS encrypts).
 
+        :param copy: False: the kept array itself, read-only (the standard PRS's one array for
+            every frame, an encrypted one per frame), which a receiver may key its own derived
+            values on
         :return: grid : [num_slots, 14, num_subcarriers] complex128
         """
         enc = self.setups[bs].prs.encrypted if encrypted is None else encrypted
@@ -128,13 +131,13 @@ class PRSTransmitter:
                 key = self.keys[self.setups[bs].bs_id].aes_key
                 self._encrypted[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots, key)
                 self._encrypted[ck].setflags(write=False)
-            return self._encrypted[ck].copy()
+            return self._encrypted[ck].copy() if copy else self._encrypted[ck]
         # the standard PRS is the same in every frame: cached per (BS position, slots)
         ck = (bs, tuple(slots))
         if ck not in self._standard:
             self._standard[ck] = prs_replica(self.layout, bs, self.setups[bs], frame, slots)
             self._standard[ck].setflags(write=False)
-        return self._standard[ck].copy()
+        return self._standard[ck].copy() if copy else self._standard[ck]
 
     def occupied(self, slots: Sequence[int] | None = None) -> tuple[np.ndarray, tuple]:
         """The REs the frame's signals fill, the same in every frame (kept per slots, read-only).
@@ -191,7 +194,7 @@ class PRSTransmitter:
         :return: grid : [num_bs, num_slots, 14, num_subcarriers] complex128
         """
         slots = self.frame_slots(slots)
-        grids = np.stack([self.replica(bs, frame, slots) for bs in range(self.num_bs)])
+        grids = np.stack([self.replica(bs, frame, slots, copy=False) for bs in range(self.num_bs)])
         if self.tags:
             for bs in range(self.num_bs):
                 k = self.layout.tag_subcarriers(bs)

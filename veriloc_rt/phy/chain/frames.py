@@ -70,6 +70,7 @@ class FrameSignals:
     waveform : [num_bs, num_samples] complex128, the grids OFDM-modulated (time domain only,
         else None)
     replicas : tuple of [num_slots, 14, num_subcarriers] complex128, each BS's local PRS replica
+        (read-only: the transmitter's kept arrays, one object for every frame of a standard PRS)
     occupied : [num_bs, num_slots, 14, num_subcarriers] bool, ``grids != 0`` (read-only; None:
         not known, compare the values)
     replica_occupied : tuple of [num_slots, 14, num_subcarriers] bool, ``replica != 0`` per BS
@@ -130,6 +131,6 @@ class FrameSource:
             grids = tx(frame, self.slots)
             wave = self.ofdm.modulate(grids, self.slots) if self.time_domain else None
             enc = None if replica == "own" else replica == "encrypted"
-            reps = tuple(tx.replica(b, frame, self.slots, enc) for b in range(self.nr.num_bs))
+            reps = tuple(tx.replica(b, frame, self.slots, enc, copy=False) for b in range(self.nr.num_bs))
             self._last = (key, FrameSignals(grids, wave, reps, *tx.occupied(self.slots)))
         return self._last[1]

@@ -66,6 +66,53 @@ def _replica_layout(replica: np.ndarray, occupied: np.ndarray | None = None) -> 
     return kept(_LAYOUTS, occ.tobytes() + str(occ.shape).encode(), make)
 
 
+#: what :func:`_replica_terms` derived from a read-only replica, by ``id``: (replica, occupied,
+#: terms); the entry holds the replica itself, so its ``id`` cannot be reused while kept
+_TERMS: dict[int, tuple] = {}
+#: replicas whose terms are kept (a chain's frame holds one per serving BS and replica mode)
+_TERMS_MAX = 16
+
+
+def _replica_terms(replica: np.ndarray, occupied: np.ndarray | None) -> tuple:
+    """``(s_idx, l_idx, groups, dense, ref_power)`` of a replica: the layout of
+    :func:`_replica_layout`; ``dense`` conj(X) [1, B, K] of every block when ``groups`` is None
+    (else None); per group ``(blocks, bins, slots, symbols, bins index, conj(X) [1, B_g, K_g])``;
+    ``ref_power`` |X|^2 [B, K] (0 off the replica's REs). Read-only arrays, kept for a read-only
+    replica (a frame's, used by every chain and scenario of its point) and made afresh for a
+    writable one."""
+    if not replica.flags.writeable:
+        kept = _TERMS.get(id(replica))
+        if kept is not None and kept[0] is replica and kept[1] is occupied:
+            return kept[2]
+    s_idx, l_idx, groups = _replica_layout(replica, occupied)
+    rep = replica[s_idx, l_idx]                                   # [B, K]
+    if groups is None:
+        dense, parts, ref_power = np.conj(rep)[None], None, np.abs(rep) ** 2
+    else:   # only the replica's REs: S = Y X* is zero elsewhere
+        dense, parts = None, []
+        ref_power = np.zeros(rep.shape)   # |X|^2: 0 off the replica's REs
+        for b, k, sb, lb, ix in groups:
+            if isinstance(ix, slice):
+                x = rep[b, ix]
+                ref_power[b, ix] = np.abs(x) ** 2
+            else:
+                x = rep[b[:, None], ix[None, :]]
+                ref_power[b[:, None], ix[None, :]] = np.abs(x) ** 2
+            cx = np.conj(x)[None]
+            cx.flags.writeable = False
+            parts.append((b, k, sb, lb, ix, cx))
+        parts = tuple(parts)
+    for a in (dense, ref_power):
+        if a is not None:
+            a.flags.writeable = False
+    terms = (s_idx, l_idx, parts, dense, ref_power)
+    if not replica.flags.writeable:
+        if len(_TERMS) >= _TERMS_MAX:
+            _TERMS.clear()
+        _TERMS[id(replica)] = (replica, occupied, terms)
+    return terms
+
+
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots,
                             occupied: np.ndarray | None = None) -> CrossSpectra:
     """Per-RE cross-spectra of a received grid with a replica grid, computed on the replica's
@@ -83,25 +130,18 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
     if occupied is not None and occupied.shape != replica.shape:
         raise ValueError(f"Argument `occupied` {occupied.shape} must have the shape of `replica` "
                          f"{replica.shape}")
-    s_idx, l_idx, groups = _replica_layout(replica, occupied)
-    rep = replica[s_idx, l_idx]                                   # [B, K]
+    s_idx, l_idx, groups, dense, ref_power = _replica_terms(replica, occupied)
     if groups is None:
-        parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * np.conj(rep)[None]    # [A, B, K]
-        ref_power = np.abs(rep) ** 2
+        parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * dense    # [A, B, K]
     else:   # only the replica's REs: S = Y X* is zero elsewhere
         spectra = None
-        ref_power = np.zeros(rep.shape)   # |X|^2: 0 off the replica's REs
         parts = []
-        for b, k, sb, lb, ix in groups:
+        for b, k, sb, lb, ix, cx in groups:
             if isinstance(ix, slice):   # (the grid may be a strided view: no reshape, which
-                x = rep[b, ix]          # would copy it whole)
-                y = rx_grid[:, sb, lb, ix]
-                ref_power[b, ix] = np.abs(x) ** 2
+                y = rx_grid[:, sb, lb, ix]   # would copy it whole)
             else:
-                x = rep[b[:, None], ix[None, :]]
                 y = rx_grid[:, sb[:, None], lb[:, None], ix[None, :]]
-                ref_power[b[:, None], ix[None, :]] = np.abs(x) ** 2
-            parts.append((b, k, y * np.conj(x)[None]))
+            parts.append((b, k, y * cx))
         parts = tuple(parts)
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,

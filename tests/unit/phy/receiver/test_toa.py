@@ -274,6 +274,31 @@ def test_frequency_cross_spectra_are_the_per_re_products_in_block_order():
         np.testing.assert_array_equal(cs.ref_power, np.abs(np.stack([r[s, l] for s, l in blocks])) ** 2)
 
 
+def test_cross_spectra_of_a_kept_replica_are_those_of_a_fresh_copy():
+    """A read-only replica (the transmitter's kept array: one object for every frame of a
+    standard PRS) has its conj(X) and |X|^2 kept from call to call: the spectra are bit for bit
+    those of a writable copy, whose terms are never kept (changing the copy changes the next
+    call's result), and the kept terms are read-only."""
+    nr, tx = _setup(slots=2)
+    slots = range(2)
+    kept = tx.replica(1, 0, slots, copy=False)
+    assert not kept.flags.writeable and tx.replica(1, 5, slots, copy=False) is kept
+    fresh = tx.replica(1, 0, slots)
+    assert fresh.flags.writeable and fresh is not kept
+    rng = np.random.default_rng(4)
+    y = add_noise(np.zeros((2,) + kept.shape), 1.0, rng)
+    for _ in range(2):
+        a = frequency_cross_spectra(y, kept, tx.ofdm, slots)
+        b = frequency_cross_spectra(y, fresh, tx.ofdm, slots)
+        np.testing.assert_array_equal(a.dense, b.dense)
+        np.testing.assert_array_equal(a.ref_power, b.ref_power)
+    assert not a.ref_power.flags.writeable
+    fresh[fresh != 0] *= 1j                     # S = Y conj(j X) = -j Y conj(X)
+    c = frequency_cross_spectra(y, fresh, tx.ofdm, slots)
+    np.testing.assert_allclose(c.dense, -1j * a.dense, rtol=1e-12)   # (rounding of the products)
+    assert np.abs(c.dense - a.dense).max() > 0.1 * np.abs(a.dense).max()
+
+
 def test_profile_power_does_not_depend_on_the_previous_call():
     """lag_power keeps its zero-padded buffer from call to call: a call after a larger one with
     scattered bins (which leaves the whole buffer written) gives bit for bit what the same
