@@ -66,6 +66,7 @@ class UplinkPositioner:
         self.slots = range(nr.slots_per_frame)
         one = srs_grid(nr.num_prb, receiver.srs_n_id, receiver.srs_comb, 0, tuple(receiver.srs_symbols))
         self.grid = np.broadcast_to(one, (len(self.slots),) + one.shape).copy()  # [S, 14, K]
+        self.grid.flags.writeable = False   # the replica: its cross-spectra terms are kept
         #: [S, 14, K] bool, the SRS's REs (``grid != 0``, computed once)
         self.occupied = self.grid != 0
         self.waveform = self.ofdm.modulate(self.grid, self.slots) if channel.domain == "time" else None
