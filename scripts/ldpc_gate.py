@@ -15,8 +15,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from scipy import integrate, optimize, stats
 
+from veriloc_rt.phy.security.coding_bounds import bi_awgn_mu_at_capacity, normal_approximation_bler
 from veriloc_rt.phy.security.ldpc import DECODE_MIN_INFORMATION, NRLDPC, llr_information
 
 #: Es/N0 per QPSK symbol, dB: around the rate-1/2 code's threshold, where the words' information
@@ -25,21 +25,10 @@ SNRS_DB = (-1.0, -0.5, 0.0)
 THRESHOLDS = (0.35, 0.40, 0.42, 0.45)
 
 
-def capacity_moments(mu: float) -> tuple[float, float]:
-    """E[i], E[i^2] of i = log2(1 + e^-L), L ~ N(mu, 2 mu) (BI-AWGN capacity 1 - E[i])."""
-    sd = np.sqrt(2 * mu)
-    lim = (mu - 12 * sd, mu + 12 * sd)
-    info = lambda x: np.log2(1 + np.exp(-x))  # noqa: E731
-    return (integrate.quad(lambda x: info(x) * stats.norm.pdf(x, mu, sd), *lim)[0],
-            integrate.quad(lambda x: info(x) ** 2 * stats.norm.pdf(x, mu, sd), *lim)[0])
-
-
 def best_code_success(capacity: float, n: int, k: int) -> float:
-    """1 - the Polyanskiy-Poor-Verdu (2010) normal approximation of the best (n, k) code's
-    block error rate on BI-AWGN of this capacity."""
-    mu = optimize.brentq(lambda m: 1 - capacity_moments(m)[0] - capacity, 0.01, 50.0)
-    m1, m2 = capacity_moments(mu)
-    return float(stats.norm.cdf((n * (1 - m1) - k + 0.5 * np.log2(n)) / np.sqrt(n * (m2 - m1 ** 2))))
+    """1 - the normal approximation of the best (n, k) code's block error rate on BI-AWGN of
+    this capacity."""
+    return 1.0 - normal_approximation_bler(bi_awgn_mu_at_capacity(capacity), n, k)
 
 
 def main() -> int:

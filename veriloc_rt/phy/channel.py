@@ -168,14 +168,14 @@ def occupied_power_factor(mode: str, num_subcarriers: int, comb: int, with_tag: 
 KEPT_MAX = 64
 
 
-def kept(store: dict, key, make):
+def kept(store: dict, key, make, max_entries: int = KEPT_MAX):
     """``store[key]``, made by ``make()`` the first time ``key`` is asked for; a store holding
-    more than :data:`KEPT_MAX` entries is emptied first (the layouts, patterns and plans a run
-    derives from its config)."""
+    more than ``max_entries`` entries is emptied first (the layouts, patterns and plans a run
+    derives from its config; fewer for large values)."""
     try:
         return store[key]
     except KeyError:
-        if len(store) > KEPT_MAX:
+        if len(store) > max_entries:
             store.clear()
         value = store[key] = make()
         return value

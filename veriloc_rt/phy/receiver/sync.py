@@ -66,10 +66,11 @@ def _replica_layout(replica: np.ndarray, occupied: np.ndarray | None = None) -> 
     return kept(_LAYOUTS, occ.tobytes() + str(occ.shape).encode(), make)
 
 
-#: what :func:`_replica_terms` derived from a read-only replica, by ``id``: (replica, occupied,
-#: terms); the entry holds the replica itself, so its ``id`` cannot be reused while kept
-_TERMS: dict[int, tuple] = {}
-#: replicas whose terms are kept (a chain's frame holds one per serving BS and replica mode)
+#: what :func:`_replica_terms` derived from read-only replicas, by the ``id`` of the replica and
+#: of its mask: each entry holds both arrays, so no other array can take their ids while it is kept
+_TERMS: dict[tuple, tuple] = {}
+#: replicas whose terms are kept (a chain's frame holds one per serving BS and replica mode; an
+#: entry is about 2 MB)
 _TERMS_MAX = 16
 
 
@@ -80,37 +81,33 @@ def _replica_terms(replica: np.ndarray, occupied: np.ndarray | None) -> tuple:
     ``ref_power`` |X|^2 [B, K] (0 off the replica's REs). Read-only arrays, kept for a read-only
     replica (a frame's, used by every chain and scenario of its point) and made afresh for a
     writable one."""
-    if not replica.flags.writeable:
-        kept = _TERMS.get(id(replica))
-        if kept is not None and kept[0] is replica and kept[1] is occupied:
-            return kept[2]
-    s_idx, l_idx, groups = _replica_layout(replica, occupied)
-    rep = replica[s_idx, l_idx]                                   # [B, K]
-    if groups is None:
-        dense, parts, ref_power = np.conj(rep)[None], None, np.abs(rep) ** 2
-    else:   # only the replica's REs: S = Y X* is zero elsewhere
-        dense, parts = None, []
-        ref_power = np.zeros(rep.shape)   # |X|^2: 0 off the replica's REs
-        for b, k, sb, lb, ix in groups:
-            if isinstance(ix, slice):
-                x = rep[b, ix]
-                ref_power[b, ix] = np.abs(x) ** 2
-            else:
-                x = rep[b[:, None], ix[None, :]]
-                ref_power[b[:, None], ix[None, :]] = np.abs(x) ** 2
-            cx = np.conj(x)[None]
-            cx.flags.writeable = False
-            parts.append((b, k, sb, lb, ix, cx))
-        parts = tuple(parts)
-    for a in (dense, ref_power):
-        if a is not None:
-            a.flags.writeable = False
-    terms = (s_idx, l_idx, parts, dense, ref_power)
-    if not replica.flags.writeable:
-        if len(_TERMS) >= _TERMS_MAX:
-            _TERMS.clear()
-        _TERMS[id(replica)] = (replica, occupied, terms)
-    return terms
+    def make():
+        s_idx, l_idx, groups = _replica_layout(replica, occupied)
+        rep = replica[s_idx, l_idx]                                   # [B, K]
+        if groups is None:
+            dense, parts, ref_power = np.conj(rep)[None], None, np.abs(rep) ** 2
+        else:   # only the replica's REs: S = Y X* is zero elsewhere
+            dense, parts = None, []
+            ref_power = np.zeros(rep.shape)   # |X|^2: 0 off the replica's REs
+            for b, k, sb, lb, ix in groups:
+                if isinstance(ix, slice):
+                    x = rep[b, ix]
+                    ref_power[b, ix] = np.abs(x) ** 2
+                else:
+                    x = rep[b[:, None], ix[None, :]]
+                    ref_power[b[:, None], ix[None, :]] = np.abs(x) ** 2
+                cx = np.conj(x)[None]
+                cx.flags.writeable = False
+                parts.append((b, k, sb, lb, ix, cx))
+            parts = tuple(parts)
+        for a in (dense, ref_power):
+            if a is not None:
+                a.flags.writeable = False
+        return replica, occupied, (s_idx, l_idx, parts, dense, ref_power)
+
+    if replica.flags.writeable:
+        return make()[2]
+    return kept(_TERMS, (id(replica), id(occupied)), make, _TERMS_MAX)[2]
 
 
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots,

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy import integrate, optimize, stats
 
+from veriloc_rt.phy.security.coding_bounds import bi_awgn_mu_at_capacity, normal_approximation_bler
 from veriloc_rt.phy.security.ldpc import DECODE_MIN_INFORMATION, NRLDPC, base_graph_2, lifted_h, llr_information
 
 DATA = Path(__file__).parent / "data"
@@ -67,28 +67,10 @@ def test_lifted_h_blocks_are_shifted_identities():
     np.testing.assert_array_equal(block, np.roll(np.eye(32, dtype=np.uint8), v, axis=1))
 
 
-def awgn_llr_moments(mu: float) -> tuple[float, float]:
-    """E[i] and E[i^2] of i = log2(1 + e^-L), L ~ N(mu, 2 mu): consistent LLRs of a BPSK bit
-    through AWGN (+1 sent); the BI-AWGN capacity is 1 - E[i], its dispersion E[i^2] - E[i]^2."""
-    info = lambda L: np.log2(1 + np.exp(-L))  # noqa: E731
-    pdf = lambda L: stats.norm.pdf(L, mu, np.sqrt(2 * mu))  # noqa: E731
-    lim = (mu - 12 * np.sqrt(2 * mu), mu + 12 * np.sqrt(2 * mu))
-    return (integrate.quad(lambda L: info(L) * pdf(L), *lim)[0],
-            integrate.quad(lambda L: info(L) ** 2 * pdf(L), *lim)[0])
-
-
-def block_error_na(mu: float, n: int, k: int) -> float:
-    """BLER of the best length-n code on the BI-AWGN channel whose LLRs have mean ``mu``,
-    Polyanskiy-Poor-Verdu (2010) normal approximation with the 1/2 log n term:
-    Q((n C - k + log2(n)/2) / sqrt(n V))."""
-    m1, m2 = awgn_llr_moments(mu)
-    return float(stats.norm.sf((n * (1 - m1) - k + 0.5 * np.log2(n)) / np.sqrt(n * (m2 - m1**2))))
-
-
 def normal_approximation(ebn0_db: float, n: int, k: int) -> float:
-    """:func:`block_error_na` at Eb/N0 ``ebn0_db`` (rate k/n, BPSK: LLR mean 2 / sigma^2)."""
+    """:func:`normal_approximation_bler` at Eb/N0 ``ebn0_db`` (rate k/n, BPSK: LLR mean 2 / sigma^2)."""
     s2 = 1 / (2 * (k / n) * 10 ** (ebn0_db / 10))
-    return block_error_na(2 / s2, n, k)
+    return normal_approximation_bler(2 / s2, n, k)
 
 
 def bler(code: NRLDPC, ebn0_db: float, trials: int, rng) -> float:
@@ -119,16 +101,12 @@ def test_awgn_waterfall_k256_rate_half():
     assert b25 <= 0.05
 
 
-def mu_at_capacity(c: float) -> float:
-    return optimize.brentq(lambda m: 1 - awgn_llr_moments(m)[0] - c, 0.01, 50.0)
-
-
 @pytest.mark.parametrize("capacity", [0.25, 0.5, 0.8])
 def test_llr_information_is_the_bi_awgn_capacity(capacity):
     """The LLR-only estimate on consistent Gaussian LLRs is the channel's capacity (integrated
-    numerically above). Tolerance 0.01: four standard errors of a mean over 20000 bits, whose
-    per-bit information lies in [0, 1] (standard deviation <= 0.5)."""
-    mu = mu_at_capacity(capacity)
+    numerically, ``coding_bounds``). Tolerance 0.01: four standard errors of a mean over 20000
+    bits, whose per-bit information lies in [0, 1] (standard deviation <= 0.5)."""
+    mu = bi_awgn_mu_at_capacity(capacity)
     rng = np.random.default_rng(7)
     sign = 1 - 2.0 * rng.integers(0, 2, 20000)
     llr = sign * rng.normal(mu, np.sqrt(2 * mu), 20000)
@@ -144,11 +122,12 @@ def test_decode_gate_leaves_every_outcome_as_full_belief_propagation():
     gated, full = NRLDPC(256), NRLDPC(256, min_information=0.0)
     assert gated.min_information == DECODE_MIN_INFORMATION == 0.8
     k = 256
-    assert 1 - block_error_na(mu_at_capacity(0.4), 512, k) == pytest.approx(4.9e-3, rel=0.05)
-    assert 1 - block_error_na(mu_at_capacity(0.4), 1024, 512) == pytest.approx(6.9e-5, rel=0.05)
+    mu_gate = bi_awgn_mu_at_capacity(0.4)
+    assert 1 - normal_approximation_bler(mu_gate, 512, k) == pytest.approx(4.9e-3, rel=0.05)
+    assert 1 - normal_approximation_bler(mu_gate, 1024, 512) == pytest.approx(6.9e-5, rel=0.05)
     rng = np.random.default_rng(11)
     for capacity, words in ((0.4, 60), (0.8, 20)):
-        mu = mu_at_capacity(capacity)
+        mu = bi_awgn_mu_at_capacity(capacity)
         bits = rng.integers(0, 2, (words, k), dtype=np.uint8)
         sign = 1 - 2.0 * gated.encode(bits)
         llr = sign * rng.normal(mu, np.sqrt(2 * mu), sign.shape)
