@@ -49,7 +49,7 @@ from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..phy.noise import KeptWhiteNoise
-from ..rng import stream
+from ..rng import KeptDraw, stream
 from ..attacks.adversary import AdversarySignal
 
 log = logging.getLogger(__name__)
@@ -154,11 +154,13 @@ class ScenarioRunner:
                  self.doppler_scan_hz, self.max_doppler_hz)
         #: the UE's thermal noise, one draw per point shared by the chains (see the module doc)
         noise = KeptWhiteNoise()
+        #: the meaconer's noise, one draw per point and PRS mode shared by that mode's chains
+        relay_noise = KeptDraw(1)
         for name, mode, plan, sec, rx in self._chain_configs(cfg):
             rx = rx.scanned_for(self.max_doppler_hz)
             chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
                                      cfg.propagation.carrier_frequency_hz, keys, noise=noise)
-            self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain))
+            self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain, relay_noise))
         self.detectors = PointDetectors.from_config(cfg.detectors)
         self.tracker = KalmanTracker(cfg.detectors.tracking)
         #: chain results by key: benign ones shared by the scenarios (common random numbers);

@@ -228,10 +228,12 @@ class _Layout:
 class _DopplerScan:
     """The Doppler scan of step 1: spectra [V, A, K] complex64 (sum_b e^{-j2pi nu t_b} S_abk per
     hypothesis; possibly a view of the thread's transform input, valid within the call),
-    hypotheses [V] float64, Hz."""
+    hypotheses [V] float64, Hz; reach_s: s, the latest lag at which the scan's delay-Doppler
+    power comes within :data:`FIRST_PATH_MAP_REACH_DB` of its peak."""
 
     spectra: np.ndarray
     hypotheses: np.ndarray
+    reach_s: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -455,6 +457,18 @@ DOPPLER_CELLS_PER_RESOLUTION = 4.0
 #: closer, they are the same path's and the scan's is the finer estimate. A rule in scan steps
 #: made the fixes depend on the step (docs/performance.md)
 FIRST_PATH_DOPPLER_TOLERANCE = 0.25
+#: the first-path search's delay-Doppler map covers the lags up to the last one at which the
+#: Doppler scan's power comes within this many dB of its peak (and up to the strongest lag of the
+#: Doppler-compensated profile), plus :data:`FIRST_PATH_MAP_MARGIN_S`; the rest of the search
+#: window is not transformed. The first path precedes the strongest, and the map's own strongest
+#: cell, the relative threshold's reference, is one of the scan's strong cells: the scan differs
+#: from the map by its straddle loss (up to 3.9 dB without zero padding) and its rectangular
+#: window (docs/performance.md, "The first-path map's lags")
+FIRST_PATH_MAP_REACH_DB = 10.0
+#: s, the margin past :data:`FIRST_PATH_MAP_REACH_DB`'s last lag
+FIRST_PATH_MAP_MARGIN_S = 1e-6
+#: the map's lag count is rounded up to a multiple of this (a few transform plans per run)
+MAP_LAGS_QUANTUM = 32
 
 
 class ToAEstimator:
@@ -620,6 +634,19 @@ class ToAEstimator:
         aperture = float(tc.max() - tc.min()) if tc.size > 1 else 0.0
         return FIRST_PATH_DOPPLER_TOLERANCE / aperture if aperture > 0 else np.inf
 
+    @staticmethod
+    def map_lags(m_rect: np.ndarray, lags: np.ndarray, step: float, reach_s: float) -> int:
+        """How many of the search window's first lags the first-path map covers: up to the
+        strongest lag of ``m_rect`` [L] (the Doppler-compensated profile's power on ``lags``, lag
+        indices of spacing ``step``, s) or the scan's reach ``reach_s`` (s), whichever is later,
+        plus :data:`FIRST_PATH_MAP_MARGIN_S`, rounded up to a multiple of
+        :data:`MAP_LAGS_QUANTUM`, at most L."""
+        if not np.isfinite(reach_s):
+            return m_rect.size
+        last = max(int(m_rect.argmax()), int(np.ceil(reach_s / step)) - int(lags[0]))
+        need = last + 1 + int(np.ceil(FIRST_PATH_MAP_MARGIN_S / step))
+        return min(m_rect.size, -(-need // MAP_LAGS_QUANTUM) * MAP_LAGS_QUANTUM)
+
     def _first_crossing(self, metric: np.ndarray, floor: float, n_cells: float, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
 
@@ -660,13 +687,17 @@ class ToAEstimator:
             # contiguous bins: the spectra written straight into the scan transform's input
             pad = self.padded_input((nus.size, a_n), idx1, n1, np.complex64)
             g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
-            metric = self.lag_power(g_nu, idx1, lags1, n1).max(axis=-1)
+            smap = self.lag_power(g_nu, idx1, lags1, n1)                             # [V, L1]
+            metric = smap.max(axis=-1)
+            per_lag = smap.max(axis=0)
+            strong = np.flatnonzero(per_lag >= per_lag.max() * 10 ** (-FIRST_PATH_MAP_REACH_DB / 10))
+            reach_s = float(lags1[strong[-1]] * layout.scan.step) if strong.size else np.inf
             i = int(metric.argmax())
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
         else:
-            nu, g_nu, nus = 0.0, None, None
+            nu, g_nu, nus, reach_s = 0.0, None, None, np.inf
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
@@ -706,7 +737,7 @@ class ToAEstimator:
         gamma_det = chdtri(dof, cfg.detection_false_alarm / n_cells) / dof
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
-            scan = _DopplerScan(g_nu, nus) if cfg.doppler_max_hz > 0 else None
+            scan = _DopplerScan(g_nu, nus, reach_s) if cfg.doppler_max_hz > 0 else None
             tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
@@ -746,7 +777,9 @@ class ToAEstimator:
                 # differ in Doppler by 2 f_D,max, more than the frame's 100 Hz resolution, and a
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
-                idx1, lags1, n1 = idx, lags, n_up
+                # the first path precedes the strongest: the map ends a margin past it
+                idx1, n1 = idx, n_up
+                lags1 = lags[:self.map_lags(m_rect, lags, step, scan.reach_s)]
                 dmap = self.lag_power(g_nu, idx1, lags1, n1, layout.win32)  # [V, L1]
                 coarse = dmap.max(axis=0)
                 i1 = self._first_crossing(coarse, floor, self.doppler_cells(tc), dof)

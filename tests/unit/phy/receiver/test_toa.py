@@ -299,6 +299,64 @@ def test_cross_spectra_of_a_kept_replica_are_those_of_a_fresh_copy():
     assert np.abs(c.dense - a.dense).max() > 0.1 * np.abs(a.dense).max()
 
 
+#: the searches with the map cut and with the whole window may differ by the transforms'
+#: rounding only: ToA within 1e-12 s (3e-4 m), Doppler within 1e-3 Hz (the map's single-precision
+#: parabola), detections equal
+CUT_TOA_S, CUT_DOPPLER_HZ = 1e-12, 1e-3
+
+
+def test_first_path_map_cut_finds_what_the_whole_window_finds(monkeypatch):
+    """The first-path map covers the lags up to the scan's last strong cell plus a margin, not
+    the whole search window (:meth:`ToAEstimator.map_lags`). Reference: the same search with the
+    whole window (the reach threshold lowered until every lag counts). Channels: a relay's copy
+    of the link 7.5 us late, Doppler 250 Hz, 1 to 3 dB weaker than the direct path (a strong
+    cell of the scan far past its strongest, which the map must cover: where nothing crosses the
+    thresholds the search falls back on the map's strongest cell), then random multipath spread
+    over the window; each with noise. And the cut does cover less than the window here."""
+    from veriloc_rt.phy.receiver import toa
+
+    nr, tx = _setup(slots=10)
+    slots = range(10)
+    ofdm = tx.ofdm
+    rep = tx.replica(0, 0, slots)
+    rng = np.random.default_rng(21)
+    t0 = 1.75e-6
+    cases = [(np.array([2.0e-6, 9.5e-6]), np.array([0.0, 250.0]), np.array([1.0, 10 ** (-db / 20)]))
+             for db in (1.0, 2.0, 3.0)]
+    for _ in range(6):
+        n = int(rng.integers(2, 6))
+        cases.append((2.0e-6 + np.sort(rng.uniform(0, 9e-6, n)), rng.uniform(-250, 250, n),
+                      10 ** (-rng.uniform(0, 12, n) / 20)))
+    cut_lags = []
+    orig = ToAEstimator.map_lags
+    monkeypatch.setattr(ToAEstimator, "map_lags",
+                        staticmethod(lambda *a: cut_lags.append(orig(*a)) or cut_lags[-1]))
+    for delays, doppler, amp in cases:
+        gains = (amp * np.exp(1j * rng.uniform(0, 2 * np.pi, amp.size)))[None, None, :]
+        links = Links(delays[None, :], gains, doppler[None, :], np.ones((1, delays.size), bool))
+        nv = 0.5
+        y = add_noise(apply_frequency(links, rep[None], np.ones(1), ofdm, slots, t0), nv, rng)
+        cs = frequency_cross_spectra(y, rep, ofdm, slots)
+        est = ToAEstimator(ReceiverConfig(), GUARD)
+        cut = est(cs, nv)
+        with monkeypatch.context() as m:
+            m.setattr(toa, "FIRST_PATH_MAP_REACH_DB", 1e6)
+            whole = est(cs, nv)
+        assert cut.detected and whole.detected
+        assert cut.toa_s == pytest.approx(whole.toa_s, abs=CUT_TOA_S)
+        assert cut.doppler_hz == pytest.approx(whole.doppler_hz, abs=CUT_DOPPLER_HZ)
+        assert cut.toa_s == pytest.approx(delays[0] - t0, abs=20e-9)   # the direct path
+    # the lag grid: the 624 bins on a 1024-point grid, zero padded 4x; from -GUARD to the window
+    rx = ReceiverConfig()
+    step = 1.0 / (rx.upsample * 1024 * nr.subcarrier_spacing_hz)
+    first = -int(np.ceil(GUARD / step))
+    n_lags = int(np.ceil(rx.search_window_s / step)) + 1 - first
+    for k in range(3):   # the relay cases: the map reaches past the relay's copy
+        assert (first + cut_lags[2 * k]) * step > cases[k][0][1] - t0
+    assert len(cut_lags) == 2 * len(cases) and cut_lags[-1] == n_lags   # the last: whole window
+    assert min(cut_lags[0::2]) < n_lags
+
+
 def test_profile_power_does_not_depend_on_the_previous_call():
     """lag_power keeps its zero-padded buffer from call to call: a call after a larger one with
     scattered bins (which leaves the whole buffer written) gives bit for bit what the same
