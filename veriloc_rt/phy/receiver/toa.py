@@ -777,7 +777,8 @@ class ToAEstimator:
                 # differ in Doppler by 2 f_D,max, more than the frame's 100 Hz resolution, and a
                 # single coherent Doppler can null the first path; each delay bin takes its best
                 # Doppler hypothesis
-                # the first path precedes the strongest: the map ends a margin past it
+                # the first path precedes the strongest: the map (and the windowed profile the
+                # first path's peak is taken on) end a margin past it
                 idx1, n1 = idx, n_up
                 lags1 = lags[:self.map_lags(m_rect, lags, step, scan.reach_s)]
                 dmap = self.lag_power(g_nu, idx1, lags1, n1, layout.win32)  # [V, L1]
@@ -792,7 +793,7 @@ class ToAEstimator:
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
                     g = cs.combine(rot)
-                metric = self.lag_power(g, idx, lags, n_up, win)
+                metric = self.lag_power(g, idx, lags1, n_up, win)   # the map's lags: i1's peak
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
                 i = int(_clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
                 while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
