@@ -305,8 +305,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
         if groups is None:
-            v = np.multiply(response(f, flat_t), amp)      # (amp * h) * x, in one new array
-            v *= x[None]
+            v = response(f, flat_t, amp) * x[None]         # (amp * h) * x
             if out is None:   # 0 + v: v with -0.0 made +0.0
                 out = np.add(v, 0.0, out=v)
             else:
@@ -318,8 +317,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         for sym, sc in groups:
             ix = group_index(sym, sc)
             # a H X: the values of (amp * h) * x
-            v = np.multiply(response(f[sc], flat_t[sym]), amp)                    # [A, Tg, Kg]
-            v *= x[ix][None]
+            v = response(f[sc], flat_t[sym], amp) * x[ix][None]                  # [A, Tg, Kg]
             if touched[ix].any():
                 out[:, ix[0], ix[1]] += v
             else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
@@ -340,8 +338,8 @@ RESPONSES_MAX = 16
 
 class _LinkResponses:
     """The frequency responses of one link (:func:`frequency_response`) on the REs asked for,
-    kept by the link's paths, t0, the times and the frequencies (the same numbers give the same
-    response): the chains of a point (standard, DS-tagged and encrypted PRS, on the same REs)
+    times a transmitter's RE amplitude, kept by the link's paths, t0, the times, the frequencies
+    and the amplitude (the same numbers give the same response): the chains of a point (standard, DS-tagged and encrypted PRS, on the same REs)
     and the adversary's scenarios apply the same links to the same REs, and compute each
     response once. A kept response is read-only."""
 
@@ -358,23 +356,35 @@ class _LinkResponses:
                 store.pop(next(iter(store)))   # the oldest link
             self.kept = store[key] = {}
 
-    def __call__(self, freqs: np.ndarray, times: np.ndarray) -> np.ndarray:
-        """H[a, t, k] of the link: [A, T, K] complex128 (read-only)."""
-        key = (times.tobytes(), freqs.tobytes())
+    def __call__(self, freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
+        """``scale`` H[a, t, k] of the link: [A, T, K] complex128 (read-only; the values of
+        ``np.multiply(H, scale)``)."""
+        key = (times.tobytes(), freqs.tobytes(), float(scale))
         h = self.kept.get(key)
         if h is None:
-            h = self.kept[key] = frequency_response(self.one, freqs, times, self.t0)[0]
+            h = self.kept[key] = np.multiply(frequency_response(self.one, freqs, times, self.t0)[0],
+                                             scale)
             h.flags.writeable = False
         return h
 
 
 _GROUPS: dict[bytes, list] = {}
+#: the groups of read-only masks by where they lie in memory: (the array owning it, groups)
+_GROUPS_BY_MEMORY: dict[tuple, tuple] = {}
 
 
 def _groups_of(occ: np.ndarray) -> list | None:
     """:func:`occupancy_groups` of ``occ``, kept per pattern (a run's grids share a few: the
-    PRS and tag REs of each BS, fixed by the config)."""
-    return kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))
+    PRS and tag REs of each BS, fixed by the config). A read-only mask (a transmitter's kept
+    one: the same memory at every call) is found by its memory, without reading its pattern."""
+    owner = occ if occ.base is None else occ.base
+    if occ.flags.writeable or not isinstance(owner, np.ndarray) or owner.flags.writeable:
+        return kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))
+    key = (id(owner), occ.__array_interface__["data"][0], occ.shape, occ.strides)
+    # an entry holds its owner: no other array gets the owner's id while the entry lives
+    hit = kept(_GROUPS_BY_MEMORY, key, lambda: (owner, kept(
+        _GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))))
+    return hit[1]
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,

@@ -43,10 +43,12 @@ def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.
     kt = layout.tag_subcarriers(bs)
     h_ls = rx[sym, kp] * np.conj(replica[sym, kp])  # [L, n]
     # phase step per subcarrier from all symbols' pilots placed on one axis (staggered comb)
-    full = np.zeros(layout.num_subcarriers, dtype=np.complex128)
-    count = np.zeros(layout.num_subcarriers)
-    np.add.at(full, kp.ravel(), h_ls.ravel())
-    np.add.at(count, kp.ravel(), 1.0)
+    # summed per subcarrier in the pilots' order (bincount adds as np.add.at does)
+    n_sc, flat_k, flat_h = layout.num_subcarriers, kp.ravel(), h_ls.ravel()
+    full = np.empty(n_sc, dtype=np.complex128)
+    full.real = np.bincount(flat_k, weights=flat_h.real, minlength=n_sc)
+    full.imag = np.bincount(flat_k, weights=flat_h.imag, minlength=n_sc)
+    count = np.bincount(flat_k, minlength=n_sc)
     both = (count[1:] > 0) & (count[:-1] > 0)
     if np.any(both):
         step = np.angle(np.sum(full[1:][both] * np.conj(full[:-1][both])))
@@ -63,9 +65,14 @@ def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.
                   + 1j * uniform_filter1d(flat.imag, w, axis=1, mode="nearest"))
     else:
         flat_s = flat
-    h = np.empty(kt.shape, dtype=np.complex128)
-    for j in range(kt.shape[0]):
-        h[j] = np.interp(kt[j], kp[j], flat_s[j].real) + 1j * np.interp(kt[j], kp[j], flat_s[j].imag)
+    # every symbol's interpolation in one call: the symbols' subcarriers set apart on one axis
+    # (integers, so the differences and slopes are the per-symbol ones), the tag subcarriers
+    # clamped to their symbol's pilots (np.interp holds the end values beyond them)
+    off = (2 * n_sc * np.arange(kp.shape[0]))[:, None]
+    xq = (np.clip(kt, kp[:, :1], kp[:, -1:]) + off).ravel()
+    xp = (kp + off).ravel()
+    h = (np.interp(xq, xp, flat_s.real.ravel())
+         + 1j * np.interp(xq, xp, flat_s.imag.ravel())).reshape(kt.shape)
     h *= np.exp(1j * step * kt)
     # the floor is relative to the pilots' power: the grid is in physical units (per-RE noise
     # ~1e-13 W), where an absolute floor would overstate the noise and flatten the LLRs
