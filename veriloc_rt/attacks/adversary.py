@@ -32,11 +32,11 @@ import math
 
 import numpy as np
 
-from ..phy.channel import (Links, add_noise, apply_frequency, dbm_to_watt, draw_noise,
-                           equal_arrival_powers, occupied_power_factor, re_amplitude,
-                           subcarrier_frequencies, receiver_noise_variance)
+from ..phy.channel import (Links, apply_frequency, dbm_to_watt, equal_arrival_powers,
+                           occupied_power_factor, re_amplitude, subcarrier_frequencies,
+                           receiver_noise_variance)
+from ..phy.noise import KeptWhiteNoise
 from ..config import Config
-from ..rng import KeptDraw
 from ..propagation.cir import CIR
 from ..phy.chain import PositioningChain
 from .fbs import FalseBaseStation, spoofer_replicas
@@ -51,12 +51,14 @@ class AdversarySignal:
 
     :param cfg: the run config (nr, channel, security, threats)
     :param chain: the chain the signal is for (its OFDM, slots and BS grids are used)
-    :param relay_noise: where the relay's last noise draw is kept (default: its own); the
-        signals of chains handed the same generator state at a point (the standard and the
-        DS-tagged chain: one PRS mode, one adversary stream) share one to draw that noise once
+    :param relay_noise: the relay's thermal noise (default: its own
+        :class:`~veriloc_rt.phy.noise.KeptWhiteNoise`); the signals of chains handed the same
+        generator state at a point (the standard and the DS-tagged chain: one PRS mode, one
+        adversary stream) share one to draw that noise once
     """
 
-    def __init__(self, cfg: Config, chain: PositioningChain, relay_noise: KeptDraw | None = None):
+    def __init__(self, cfg: Config, chain: PositioningChain,
+                 relay_noise: KeptWhiteNoise | None = None):
         self.cfg, self.chain = cfg, chain
         self.ofdm = chain.ofdm
         self.slots = chain.slots
@@ -74,7 +76,7 @@ class AdversarySignal:
         nf = cfg.channel.ue_noise_figure_db if mc.noise_figure_db is None else mc.noise_figure_db
         self.adv_noise_var = receiver_noise_variance(cfg.channel, fs, nf)
         self.relay_rx_gain = 10.0 ** (mc.rx_antenna_gain_dbi / 20.0)
-        self._relay_noise = KeptDraw(1) if relay_noise is None else relay_noise
+        self.relay_noise = KeptWhiteNoise(1) if relay_noise is None else relay_noise
         self.shape = (len(self.slots), 14, self.ofdm.num_subcarriers)
 
     def _delay(self, delay_s: float) -> np.ndarray:
@@ -135,15 +137,7 @@ class AdversarySignal:
                                                  re_amplitude(powers * self.chain.bs_power_factor,
                                                               self.ofdm), self.ofdm,
                                                  self.slots, 0.0, sig.occupied)[0]
-        if self.adv_noise_var > 0:
-            def draw():
-                n = draw_noise(y.shape, self.adv_noise_var, rng)
-                n.flags.writeable = False
-                return n
-
-            y = self._relay_noise((y.shape, self.adv_noise_var), rng, draw) + y   # add_noise's values
-        else:
-            y = add_noise(y, self.adv_noise_var, rng)
+        y = self.relay_noise(y, self.adv_noise_var, rng)
         # AGC over the whole input (signal + noise): RE power p means carrier power
         # p N_sc / N_fft (channel module's convention), so the gain is the same as on IQ
         p_in = float(np.mean(np.abs(y) ** 2)) * self.ofdm.num_subcarriers / self.ofdm.fft_size

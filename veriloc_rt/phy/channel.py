@@ -181,6 +181,14 @@ def kept(store: dict, key, make, max_entries: int = KEPT_MAX):
         return value
 
 
+def kept_by_id(store: dict, objects: tuple, make, key: tuple = (), max_entries: int = KEPT_MAX):
+    """:func:`kept` under the identities of ``objects`` (read-only arrays whose values ``make()``
+    derives from) and ``key``, without reading their values; an entry holds the objects, so no
+    other object takes their ids while it is kept."""
+    return kept(store, tuple(id(o) for o in objects) + tuple(key), lambda: (objects, make()),
+                max_entries)[1]
+
+
 _LAYOUTS: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 
@@ -339,9 +347,10 @@ RESPONSES_MAX = 16
 class _LinkResponses:
     """The frequency responses of one link (:func:`frequency_response`) on the REs asked for,
     times a transmitter's RE amplitude, kept by the link's paths, t0, the times, the frequencies
-    and the amplitude (the same numbers give the same response): the chains of a point (standard, DS-tagged and encrypted PRS, on the same REs)
-    and the adversary's scenarios apply the same links to the same REs, and compute each
-    response once. A kept response is read-only."""
+    and the amplitude (the same numbers give the same response): the chains of a point
+    (standard, DS-tagged and encrypted PRS, on the same REs) and the adversary's scenarios apply
+    the same links to the same REs, and compute each response once. A kept response is
+    read-only."""
 
     def __init__(self, one: Links, t0: float):
         store = getattr(_RESPONSES, "links", None)
@@ -369,7 +378,7 @@ class _LinkResponses:
 
 
 _GROUPS: dict[bytes, list] = {}
-#: the groups of read-only masks by where they lie in memory: (the array owning it, groups)
+#: the groups of read-only masks by the array owning their memory and where they lie in it
 _GROUPS_BY_MEMORY: dict[tuple, tuple] = {}
 
 
@@ -380,11 +389,9 @@ def _groups_of(occ: np.ndarray) -> list | None:
     owner = occ if occ.base is None else occ.base
     if occ.flags.writeable or not isinstance(owner, np.ndarray) or owner.flags.writeable:
         return kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))
-    key = (id(owner), occ.__array_interface__["data"][0], occ.shape, occ.strides)
-    # an entry holds its owner: no other array gets the owner's id while the entry lives
-    hit = kept(_GROUPS_BY_MEMORY, key, lambda: (owner, kept(
-        _GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))))
-    return hit[1]
+    return kept_by_id(_GROUPS_BY_MEMORY, (owner,), lambda: kept(
+        _GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ)),
+        key=(occ.__array_interface__["data"][0], occ.shape, occ.strides))
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,

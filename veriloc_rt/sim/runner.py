@@ -49,7 +49,7 @@ from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..phy.noise import KeptWhiteNoise
-from ..rng import KeptDraw, stream
+from ..rng import stream
 from ..attacks.adversary import AdversarySignal
 
 log = logging.getLogger(__name__)
@@ -155,7 +155,7 @@ class ScenarioRunner:
         #: the UE's thermal noise, one draw per point shared by the chains (see the module doc)
         noise = KeptWhiteNoise()
         #: the meaconer's noise, one draw per point and PRS mode shared by that mode's chains
-        relay_noise = KeptDraw(1)
+        relay_noise = KeptWhiteNoise(1)
         for name, mode, plan, sec, rx in self._chain_configs(cfg):
             rx = rx.scanned_for(self.max_doppler_hz)
             chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,

@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft as sfft
 
-from ..channel import as_slice, kept, occupancy_groups, subcarrier_frequencies, symbol_layout
+from ..channel import (as_slice, kept, kept_by_id, occupancy_groups, subcarrier_frequencies,
+                       symbol_layout)
 from ..nr.ofdm import OFDM
 from .toa import CrossSpectra, spatial_dof
 
@@ -66,8 +67,8 @@ def _replica_layout(replica: np.ndarray, occupied: np.ndarray | None = None) -> 
     return kept(_LAYOUTS, occ.tobytes() + str(occ.shape).encode(), make)
 
 
-#: what :func:`_replica_terms` derived from read-only replicas, by the ``id`` of the replica and
-#: of its mask: each entry holds both arrays, so no other array can take their ids while it is kept
+#: what :func:`_replica_terms` derived from read-only replicas, by the replica and its mask
+#: (:func:`~veriloc_rt.phy.channel.kept_by_id`)
 _TERMS: dict[tuple, tuple] = {}
 #: replicas whose terms are kept (a chain's frame holds one per serving BS and replica mode; an
 #: entry is about 2 MB)
@@ -103,11 +104,11 @@ def _replica_terms(replica: np.ndarray, occupied: np.ndarray | None) -> tuple:
         for a in (dense, ref_power):
             if a is not None:
                 a.flags.writeable = False
-        return replica, occupied, (s_idx, l_idx, parts, dense, ref_power)
+        return s_idx, l_idx, parts, dense, ref_power
 
     if replica.flags.writeable:
-        return make()[2]
-    return kept(_TERMS, (id(replica), id(occupied)), make, _TERMS_MAX)[2]
+        return make()
+    return kept_by_id(_TERMS, (replica, occupied), make, max_entries=_TERMS_MAX)
 
 
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots,

@@ -647,6 +647,14 @@ class ToAEstimator:
         need = last + 1 + int(np.ceil(FIRST_PATH_MAP_MARGIN_S / step))
         return min(m_rect.size, -(-need // MAP_LAGS_QUANTUM) * MAP_LAGS_QUANTUM)
 
+    @staticmethod
+    def _reach(smap: np.ndarray, layout: _Layout) -> float:
+        """The latest lag, s, at which the Doppler scan's power ``smap`` [V, L1] comes within
+        :data:`FIRST_PATH_MAP_REACH_DB` of its peak (inf without power)."""
+        per_lag = smap.max(axis=0)
+        strong = np.flatnonzero(per_lag >= per_lag.max() * 10 ** (-FIRST_PATH_MAP_REACH_DB / 10))
+        return float(layout.scan.lags[strong[-1]] * layout.scan.step) if strong.size else np.inf
+
     def _first_crossing(self, metric: np.ndarray, floor: float, n_cells: float, dof: float) -> int:
         """Index of the first local peak above the noise and relative thresholds.
 
@@ -689,15 +697,12 @@ class ToAEstimator:
             g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
             smap = self.lag_power(g_nu, idx1, lags1, n1)                             # [V, L1]
             metric = smap.max(axis=-1)
-            per_lag = smap.max(axis=0)
-            strong = np.flatnonzero(per_lag >= per_lag.max() * 10 ** (-FIRST_PATH_MAP_REACH_DB / 10))
-            reach_s = float(lags1[strong[-1]] * layout.scan.step) if strong.size else np.inf
             i = int(metric.argmax())
             nu = float(nus[i])
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
         else:
-            nu, g_nu, nus, reach_s = 0.0, None, None, np.inf
+            nu, g_nu, nus, smap = 0.0, None, None, None
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
@@ -737,7 +742,7 @@ class ToAEstimator:
         gamma_det = chdtri(dof, cfg.detection_false_alarm / n_cells) / dof
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
-            scan = _DopplerScan(g_nu, nus, reach_s) if cfg.doppler_max_hz > 0 else None
+            scan = _DopplerScan(g_nu, nus, self._reach(smap, layout)) if smap is not None else None
             tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
