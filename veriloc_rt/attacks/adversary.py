@@ -128,7 +128,7 @@ class AdversarySignal:
 
     def _meaconing(self, point, frame, bs_ue, bs_adv, rng) -> np.ndarray:
         bs_ids = tuple(int(b) for b in bs_ue.tx_index[point])
-        sig = self.chain.frame_signals(bs_ids, frame)
+        sig = self.chain.frame_signals(bs_ids, frame, every_tag=True)   # the relay hears every RE
         grids = sig.grids
         ch = self.cfg.channel
         powers = equal_arrival_powers(Links.from_cir(bs_ue, point).power_gain(),

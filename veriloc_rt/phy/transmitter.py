@@ -139,8 +139,10 @@ class PRSTransmitter:
             self._standard[ck].setflags(write=False)
         return self._standard[ck].copy() if copy else self._standard[ck]
 
-    def occupied(self, slots: Sequence[int] | None = None) -> tuple[np.ndarray, tuple]:
-        """The REs the frame's signals fill, the same in every frame (kept per slots, read-only).
+    def occupied(self, slots: Sequence[int] | None = None,
+                 tag_slots: Sequence[int] | None = None) -> tuple[np.ndarray, tuple]:
+        """The REs the frame's signals fill, the same in every frame (kept per slots and tag
+        slots, read-only).
 
         A PRS RE carries a QPSK symbol, (+-1 +- j) / sqrt(2), never 0, standard or encrypted; a
         tag RE carries one where the modem places a codeword symbol (every tag RE with fill
@@ -148,11 +150,13 @@ class PRSTransmitter:
         ``replica != 0`` of every frame, without comparing a grid's values (a receiver uses them to
         find the REs it reads).
 
+        :param tag_slots: as :meth:`__call__`'s
         :return: (grids [num_bs, num_slots, 14, num_subcarriers] bool, as :meth:`__call__`'s
             grids; replicas: per BS [num_slots, 14, num_subcarriers] bool, as :meth:`replica`'s)
         """
         slots = self.frame_slots(slots)
-        key = tuple(slots)
+        tagged = self._tagged(slots, tag_slots)
+        key = (tuple(slots), tuple(tagged))
         if key not in self._occupied:
             lay, n = self.layout, len(slots)
             reps = []
@@ -166,7 +170,7 @@ class PRSTransmitter:
                     used = np.zeros(lay.num_symbols * lay.res_per_symbol, dtype=bool)
                     used[:self.modem.copy_index.size] = True
                     k = lay.tag_subcarriers(bs)
-                    grids[bs][:, lay.symbols[:, None], k] = used.reshape(k.shape)
+                    grids[bs][tagged[:, None, None], lay.symbols[:, None], k] = used.reshape(k.shape)
             grids.flags.writeable = False
             self._occupied[key] = (grids, tuple(reps))
         return self._occupied[key]
@@ -188,20 +192,32 @@ class PRSTransmitter:
                                                                            setup.prs))
                                          for s in slots])
 
-    def __call__(self, frame: int, slots: Sequence[int] | None = None) -> np.ndarray:
+    def _tagged(self, slots: list[int], tag_slots: Sequence[int] | None) -> np.ndarray:
+        """Indices into ``slots`` of the slots that carry tags (every one for None)."""
+        if tag_slots is None:
+            return np.arange(len(slots))
+        want = {int(s) for s in tag_slots}
+        return np.array([i for i, s in enumerate(slots) if s in want], dtype=np.int64)
+
+    def __call__(self, frame: int, slots: Sequence[int] | None = None,
+                 tag_slots: Sequence[int] | None = None) -> np.ndarray:
         """Resource grids of frame ``frame`` (a 32-bit frame counter).
 
+        :param tag_slots: slot numbers whose tags are written (None: every slot's); the tag REs
+            of the other slots stay empty (a receiver that reads no tags there needs none: on a
+            per-RE channel an RE's signal reaches no other RE)
         :return: grid : [num_bs, num_slots, 14, num_subcarriers] complex128
         """
         slots = self.frame_slots(slots)
         grids = np.stack([self.replica(bs, frame, slots, copy=False) for bs in range(self.num_bs)])
-        if self.tags:
+        tagged = self._tagged(slots, tag_slots)
+        if self.tags and tagged.size:
+            sym = self.layout.symbols[:, None]
             for bs in range(self.num_bs):
                 k = self.layout.tag_subcarriers(bs)
-                sym = self.layout.symbols[:, None]
-                x = self.tag_symbols_of_slots(bs, frame, slots)
-                for i in range(len(slots)):
-                    grids[bs, i, sym, k] = x[i].reshape(k.shape)
+                x = self.tag_symbols_of_slots(bs, frame, [slots[i] for i in tagged])
+                for i, xi in zip(tagged, x):
+                    grids[bs, i, sym, k] = xi.reshape(k.shape)
         log.debug("frame %d: %d BS x %d slots", frame, self.num_bs, len(slots))
         return grids
 

@@ -52,6 +52,7 @@ class FrameKey:
     serving: ServingSet
     frame: int
     replica: str
+    every_tag: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,7 +67,9 @@ class ServingSetup:
 class FrameSignals:
     """One frame of the serving BSs, in the unit-RE normalisation.
 
-    grids : [num_bs, num_slots, 14, num_subcarriers] complex128, what each BS transmits
+    grids : [num_bs, num_slots, 14, num_subcarriers] complex128, what each BS transmits (its tags
+        in the source's tag slots only, unless asked for every slot's:
+        :attr:`FrameSource.tag_slots`)
     waveform : [num_bs, num_samples] complex128, the grids OFDM-modulated (time domain only,
         else None)
     replicas : tuple of [num_slots, 14, num_subcarriers] complex128, each BS's local PRS replica
@@ -91,17 +94,27 @@ class FrameSource:
     :param keys: by BS id, for encryption and tags (empty if neither is used); an empty slot's
         dummy identity gets keys drawn from its own seed
     :param time_domain: also OFDM-modulate the grids (the time-domain channel takes waveforms)
+    :param tag_slots: indices (in the frame) of the slots whose tags a frame's grids carry unless
+        asked for every slot's (None: every slot's): the slots whose tags the chain's receiver
+        checks. Frequency domain only: there a tag RE's signal reaches that RE alone, so the
+        empty tag REs of the other slots change nothing the receiver reads; in the time domain a
+        Doppler shift spreads every RE over its neighbours
     """
 
     def __init__(self, nr: NRConfig, security: SecurityConfig, keys: Mapping[int, BSKeys],
-                 time_domain: bool):
+                 time_domain: bool, tag_slots: Sequence[int] | None = None):
         self.nr, self.security = nr, security
         self.keys = dict(keys)
         self.time_domain = bool(time_domain)
         self.ofdm = OFDM(nr)
         self.slots = range(nr.slots_per_frame)
         self._setups: dict[ServingSet, ServingSetup] = {}
-        self._last: tuple[FrameKey, FrameSignals] | None = None
+        if tag_slots is not None and time_domain:
+            raise ValueError("Argument `tag_slots` needs the frequency domain (time_domain False)")
+        #: slot numbers whose tags the grids carry by default (None: every slot's)
+        self.tag_slots = None if tag_slots is None else tuple(self.slots[int(i)] for i in tag_slots)
+        #: the last frames by key: the chain's and a relay's, which asks for every tag
+        self._last: dict[FrameKey, FrameSignals] = {}
 
     def setup(self, bs_ids: Sequence[int]) -> ServingSetup:
         """Transmitter and tag verifier of a serving set (cached)."""
@@ -118,19 +131,28 @@ class FrameSource:
             self._setups[serving] = ServingSetup(tx, ver)
         return self._setups[serving]
 
-    def __call__(self, bs_ids: Sequence[int], frame: int, replica: str = "own") -> FrameSignals:
-        """Grids, waveforms and replicas of one frame (the last one is kept).
+    def __call__(self, bs_ids: Sequence[int], frame: int, replica: str = "own",
+                 every_tag: bool = False) -> FrameSignals:
+        """Grids, waveforms and replicas of one frame (the last two kept: a chain's and a relay's).
 
         :param replica: one of :data:`~veriloc_rt.phy.chain.plan.REPLICAS`
+        :param every_tag: the grids carry every slot's tags, whatever :attr:`tag_slots` (what a
+            relay receives and amplifies: its gain depends on every RE)
         """
         if replica not in REPLICAS:
             raise ValueError(f"Argument `replica` must be one of {REPLICAS}, not {replica!r}")
-        key = FrameKey(ServingSet.of(bs_ids), int(frame), replica)
-        if self._last is None or self._last[0] != key:
+        every = bool(every_tag) or self.tag_slots is None
+        key = FrameKey(ServingSet.of(bs_ids), int(frame), replica, every)
+        sig = self._last.get(key)
+        if sig is None:
             tx = self.setup(bs_ids).transmitter
-            grids = tx(frame, self.slots)
+            tagged = None if every else self.tag_slots
+            grids = tx(frame, self.slots, tagged)
             wave = self.ofdm.modulate(grids, self.slots) if self.time_domain else None
             enc = None if replica == "own" else replica == "encrypted"
             reps = tuple(tx.replica(b, frame, self.slots, enc, copy=False) for b in range(self.nr.num_bs))
-            self._last = (key, FrameSignals(grids, wave, reps, *tx.occupied(self.slots)))
-        return self._last[1]
+            sig = FrameSignals(grids, wave, reps, *tx.occupied(self.slots, tagged))
+            if len(self._last) >= 2:
+                self._last.pop(next(iter(self._last)))
+            self._last[key] = sig
+        return sig

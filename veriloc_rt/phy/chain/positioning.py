@@ -84,7 +84,9 @@ class PositioningChain:
             raise ValueError(f"receiver.tag_slots {receiver.tag_slots} exceed nr.slots_per_frame "
                              f"{nr.slots_per_frame}")
         self.nr, self.security, self.channel, self.receiver = nr, security, channel, receiver
-        self.frames = FrameSource(nr, security, keys if keys is not None else {}, channel.domain == "time")
+        time_domain = channel.domain == "time"
+        self.frames = FrameSource(nr, security, keys if keys is not None else {}, time_domain,
+                                  None if time_domain else receiver.tag_slots)
         self.ofdm, self.slots = self.frames.ofdm, self.frames.slots
         wavelength = SPEED_OF_LIGHT / carrier_frequency_hz
         axis = np.deg2rad(ue_array.axis_azimuth_deg)
@@ -120,9 +122,11 @@ class PositioningChain:
         """Transmitter and tag verifier of a serving set (cached)."""
         return self.frames.setup(bs_ids)
 
-    def frame_signals(self, bs_ids: Sequence[int], frame: int, replica: str = "own") -> FrameSignals:
-        """Grids, waveforms and replicas of one frame (:class:`~.frames.FrameSource`)."""
-        return self.frames(bs_ids, frame, replica)
+    def frame_signals(self, bs_ids: Sequence[int], frame: int, replica: str = "own",
+                      every_tag: bool = False) -> FrameSignals:
+        """Grids, waveforms and replicas of one frame (:class:`~.frames.FrameSource`; its grids
+        carry the tags of the checked slots only, every slot's with ``every_tag``)."""
+        return self.frames(bs_ids, frame, replica, every_tag)
 
     def _check(self, bs_ue: CIR, point: int, rng) -> None:
         if not isinstance(rng, np.random.Generator):

@@ -97,6 +97,56 @@ def test_downlink_power_control_and_timing_reference_in_closed_form():
     assert links.timing_reference_s == pytest.approx(dist.min() / C - ch.timing_guard_s, rel=REL)
 
 
+def test_frames_carry_the_checked_slots_tags_and_a_relay_gets_every_tag():
+    """With tag_slots (0,) a frame's grids are the whole frame's on every RE but slot 1's tag
+    REs, which stay empty (3 BSs' tags: half the REs of each PRS symbol), and the occupancy
+    masks say so; asked for every tag, the grids are the whole frame's. The received grid is
+    then the whole frame's on every RE the receiver reads (the per-RE channel: one RE's signal
+    reaches no other), with the same noise draws."""
+    nr = NRConfig(slots_per_frame=2)
+    ofdm = OFDM(nr)
+    keys = simulated_keys((0, 1, 2), np.random.default_rng(0))
+    src = FrameSource(nr, SecurityConfig(tag_scheme="hmac"), keys, time_domain=False, tag_slots=(0,))
+    whole = FrameSource(nr, SecurityConfig(tag_scheme="hmac"), keys, time_domain=False)
+    sig, full = src((0, 1, 2), 3), whole((0, 1, 2), 3)
+    prs = np.any(np.stack(full.replica_occupied), axis=0)                  # [S, 14, K]
+    unchecked = np.any(full.occupied, axis=0) & ~prs
+    unchecked[0] = False
+    assert unchecked[1].sum() == nr.num_symbols * ofdm.num_subcarriers // 2
+    np.testing.assert_array_equal(sig.grids[:, ~unchecked], full.grids[:, ~unchecked])
+    assert not sig.grids[:, unchecked].any() and np.any(full.grids[:, unchecked] != 0, axis=0).all()
+    np.testing.assert_array_equal(sig.occupied, sig.grids != 0)
+    relay = src((0, 1, 2), 3, every_tag=True)
+    np.testing.assert_array_equal(relay.grids, full.grids)
+    np.testing.assert_array_equal(relay.occupied, full.occupied)
+    assert src((0, 1, 2), 3) is sig and src((0, 1, 2), 3, every_tag=True) is relay   # both kept
+    dl = DownlinkChannel(ChannelConfig(), ofdm, range(2), 1.0, ofdm.num_samples(range(2)), 1,
+                         WhiteNoise(), 1e-3)
+    links = dl.links(one_path_cir(UE), 0)
+    y = dl.benign(links, sig, np.random.default_rng(7), 2)
+    y_full = dl.benign(links, full, np.random.default_rng(7), 2)
+    np.testing.assert_array_equal(y[:, ~unchecked], y_full[:, ~unchecked])
+    with pytest.raises(ValueError, match="frequency domain"):
+        FrameSource(nr, SecurityConfig(tag_scheme="hmac"), keys, time_domain=True, tag_slots=(0,))
+
+
+def test_a_chain_reads_the_same_without_the_unchecked_slots_tags():
+    """The chain's results (ToA, Doppler, fix, tag verdicts) are the same, value for value, when
+    its frames carry every slot's tags: nothing it reads changes."""
+    chain = PositioningChain(NRConfig(slots_per_frame=3), SecurityConfig(tag_scheme="hmac"),
+                             ChannelConfig(), ReceiverConfig(uplink=False, tag_slots=(1,)),
+                             ArrayConfig(), FC, simulated_keys((0, 1, 2), np.random.default_rng(0)))
+    cir = one_path_cir(UE)
+    lean = chain(cir, 0, np.random.default_rng(5), frame=9)
+    assert chain.frames.tag_slots == (1,)
+    chain.frames.tag_slots = None
+    every = chain(cir, 0, np.random.default_rng(5), frame=9)
+    for f in ("toa_s", "doppler_hz", "peak_snr_db", "tags_valid", "detected"):
+        np.testing.assert_array_equal(getattr(lean, f), getattr(every, f))
+    np.testing.assert_array_equal(lean.position.position, every.position.position)
+    assert lean.tags_valid.all()
+
+
 def test_kept_draw_gives_the_value_back_only_for_the_same_key_and_generator_state():
     kept, calls = KeptDraw(), []
 
