@@ -130,7 +130,7 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
                          f"{replica.shape}")
     s_idx, l_idx, groups, dense, ref_power = _replica_terms(replica, occupied)
     if groups is None:
-        parts, spectra = None, rx_grid[:, s_idx, l_idx, :] * dense    # [A, B, K]
+        parts, spectra = None, np.multiply(rx_grid[:, s_idx, l_idx, :], dense, order="C")   # [A, B, K]
     else:   # only the replica's REs: S = Y X* is zero elsewhere
         spectra = None
         parts = []
@@ -139,7 +139,9 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
                 y = rx_grid[:, sb, lb, ix]   # would copy it whole)
             else:
                 y = rx_grid[:, sb[:, None], lb[:, None], ix[None, :]]
-            parts.append((b, k, y * cx))
+            # C order [A, B_g, K_g]: the gather leaves the blocks outermost, and the products
+            # over the antennas' rows (spatial_dof, CrossSpectra.at_delay) then copy it whole
+            parts.append((b, k, np.multiply(y, cx, order="C")))
         parts = tuple(parts)
     return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
                         bin_spacing_hz=ofdm.subcarrier_spacing_hz,
