@@ -85,7 +85,12 @@ def jamming_grid(shape, power_w: float, fft_size: int, rng: np.random.Generator)
     if not (math.isfinite(power_w) and power_w >= 0):
         raise ValueError(f"Argument `power_w` must be >= 0, not {power_w!r}")
     s2 = power_w * fft_size / shape[-1]
-    return math.sqrt(s2 / 2.0) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
+    scale = math.sqrt(s2 / 2.0)
+    out = np.empty(shape, dtype=np.complex128)   # scale (re + j im), without its temporaries
+    out.real = rng.standard_normal(shape)
+    out.imag = rng.standard_normal(shape)
+    out *= scale
+    return out
 
 
 class Jammer:
