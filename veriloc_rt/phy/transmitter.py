@@ -210,16 +210,25 @@ class PRSTransmitter:
         """
         slots = self.frame_slots(slots)
         grids = np.stack([self.replica(bs, frame, slots, copy=False) for bs in range(self.num_bs)])
-        tagged = self._tagged(slots, tag_slots)
-        if self.tags and tagged.size:
-            sym = self.layout.symbols[:, None]
-            for bs in range(self.num_bs):
-                k = self.layout.tag_subcarriers(bs)
-                x = self.tag_symbols_of_slots(bs, frame, [slots[i] for i in tagged])
-                for i, xi in zip(tagged, x):
-                    grids[bs, i, sym, k] = xi.reshape(k.shape)
+        self.add_tags(grids, frame, slots, tag_slots)
         log.debug("frame %d: %d BS x %d slots", frame, self.num_bs, len(slots))
         return grids
+
+    def add_tags(self, grids: np.ndarray, frame: int, slots: Sequence[int] | None = None,
+                 tag_slots: Sequence[int] | None = None) -> None:
+        """Write the tags of frame ``frame`` into ``grids`` (as :meth:`__call__`'s, of ``slots``),
+        in place: those of the slot numbers ``tag_slots`` (None: every slot's); nothing without
+        a tag scheme."""
+        slots = self.frame_slots(slots)
+        tagged = self._tagged(slots, tag_slots)
+        if not (self.tags and tagged.size):
+            return
+        sym = self.layout.symbols[:, None]
+        for bs in range(self.num_bs):
+            k = self.layout.tag_subcarriers(bs)
+            x = self.tag_symbols_of_slots(bs, frame, [slots[i] for i in tagged])
+            for i, xi in zip(tagged, x):
+                grids[bs, i, sym, k] = xi.reshape(k.shape)
 
     def waveform(self, frame: int, slots: Sequence[int] | None = None) -> np.ndarray:
         """Time-domain baseband of each BS.

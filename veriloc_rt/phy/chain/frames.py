@@ -10,13 +10,14 @@ scenarios of a point, and the adversary's relay, ask for the same frame in a row
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ...config.nr import NRConfig
 from ...config.security import SecurityConfig
 from ...propagation.cir import NO_TX
+from ..channel import kept
 from ..nr.ofdm import OFDM
 from ..receiver.tag_verifier import TagVerifier
 from ..security.keys import BSKeys, make_keys
@@ -113,7 +114,8 @@ class FrameSource:
             raise ValueError("Argument `tag_slots` needs the frequency domain (time_domain False)")
         #: slot numbers whose tags the grids carry by default (None: every slot's)
         self.tag_slots = None if tag_slots is None else tuple(self.slots[int(i)] for i in tag_slots)
-        #: the last frames by key: the chain's and a relay's, which asks for every tag
+        #: the last frames by key (:func:`~veriloc_rt.phy.channel.kept`, emptied when a third
+        #: comes): the chain's and a relay's, which asks for every tag
         self._last: dict[FrameKey, FrameSignals] = {}
 
     def setup(self, bs_ids: Sequence[int]) -> ServingSetup:
@@ -143,16 +145,20 @@ class FrameSource:
             raise ValueError(f"Argument `replica` must be one of {REPLICAS}, not {replica!r}")
         every = bool(every_tag) or self.tag_slots is None
         key = FrameKey(ServingSet.of(bs_ids), int(frame), replica, every)
-        sig = self._last.get(key)
-        if sig is None:
+
+        def make():
             tx = self.setup(bs_ids).transmitter
             tagged = None if every else self.tag_slots
+            lean = (self._last.get(replace(key, every_tag=False))
+                    if every and self.tag_slots is not None else None)
+            if lean is not None:   # the chain's frame plus the other slots' tags
+                grids = lean.grids.copy()
+                tx.add_tags(grids, frame, self.slots, [s for s in self.slots if s not in self.tag_slots])
+                return replace(lean, grids=grids, occupied=tx.occupied(self.slots)[0])
             grids = tx(frame, self.slots, tagged)
             wave = self.ofdm.modulate(grids, self.slots) if self.time_domain else None
             enc = None if replica == "own" else replica == "encrypted"
             reps = tuple(tx.replica(b, frame, self.slots, enc, copy=False) for b in range(self.nr.num_bs))
-            sig = FrameSignals(grids, wave, reps, *tx.occupied(self.slots, tagged))
-            if len(self._last) >= 2:
-                self._last.pop(next(iter(self._last)))
-            self._last[key] = sig
-        return sig
+            return FrameSignals(grids, wave, reps, *tx.occupied(self.slots, tagged))
+
+        return kept(self._last, key, make, max_entries=1)
