@@ -2,7 +2,8 @@
 
 The per-point chains (``ScenarioRunner.compute_chains``: every chain of every scenario a point
 needs) spend part of their CPU in library kernels whose work the results depend on value for
-value: the noise's normals (NumPy's PCG64 ziggurat), the ToA search's transforms (pocketfft),
+value: the noise's normals (NumPy's PCG64 ziggurat), the ToA search's transforms (pocketfft,
+through ``scipy.fft``'s public functions, whose dispatch of a few microseconds a call counts),
 the tag decoder's belief propagation (the ``ldpc`` package). This runs the chains on a few
 benign points and a few attack-window points with those entry points wrapped (the calls only
 recorded: the results are the unwrapped code's), then replays every recorded call alone, in a
@@ -31,6 +32,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+import scipy.fft  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -41,7 +43,7 @@ class Recorder:
     def __init__(self):
         self.on = False
         self.normals: list[tuple] = []   # (size, dtype)
-        self.fft: list[tuple] = []       # (name, shape, dtype, args after the array, in place)
+        self.fft: list[tuple] = []       # (name, shape, dtype, positional args after the array, keywords)
         self.bp: list[tuple] = []        # (decoder, channel probabilities, hard decisions)
 
 
@@ -78,13 +80,15 @@ class RecordingDecoder:
         return self._real.converge
 
 
+#: the transforms the chains call, through scipy.fft's public functions (the chain's modules
+#: look them up on ``scipy.fft`` at each call)
+TRANSFORMS = ("fft", "ifft", "rfft", "irfft")
 REAL: dict = {}   # the unwrapped transforms
 
 
 def install_hooks() -> None:
     """Wrap the kernels' entry points (before any chain is built)."""
     import ldpc
-    import scipy.fft._pocketfft.pypocketfft as pfft
 
     real_rng = np.random.default_rng
 
@@ -99,16 +103,16 @@ def install_hooks() -> None:
     real_bp = ldpc.BpDecoder
     ldpc.BpDecoder = lambda *a, **k: RecordingDecoder(real_bp(*a, **k))
 
-    for name in ("c2c", "r2c", "c2r"):
-        REAL[name] = real = getattr(pfft, name)
+    for name in TRANSFORMS:
+        REAL[name] = real = getattr(scipy.fft, name)
 
-        def wrapped(a, *args, _real=real, _name=name):
-            # scipy.fft passes every argument by position: (a, axes, ..., out, workers)
+        def wrapped(x, *args, _real=real, _name=name, **kwargs):
             if REC.on:
-                REC.fft.append((_name, a.shape, a.dtype, args[:-2], args[-2] is not None))
-            return _real(a, *args)
+                x = np.asarray(x)
+                REC.fft.append((_name, x.shape, x.dtype, args, kwargs))
+            return _real(x, *args, **kwargs)
 
-        setattr(pfft, name, wrapped)
+        setattr(scipy.fft, name, wrapped)
 
 
 def build_runner(config: str, work: Path):
@@ -133,7 +137,7 @@ def chain_cpu(r, points) -> float:
 def replay(repeats: int = 3) -> dict[str, float]:
     """Thread CPU seconds of the recorded calls alone, by kind (the fastest of ``repeats``
     passes). A transform runs on an array of its recorded shape and type (one per shape: the
-    cost does not depend on the values), into a kept output where the chain gave one."""
+    cost does not depend on the values), with the recorded arguments."""
     rng = np.random.Generator(np.random.PCG64(0))
     arrays: dict = {}
 
@@ -142,10 +146,16 @@ def replay(repeats: int = 3) -> dict[str, float]:
             a = rng.standard_normal(shape)
             if dtype.kind == "c":
                 a = a + 1j * rng.standard_normal(shape)
-            arrays[shape, dtype] = (a.astype(dtype), np.empty(shape, dtype=np.result_type(dtype, np.complex64)))
+            arrays[shape, dtype] = a.astype(dtype)
         return arrays[shape, dtype]
 
-    ffts = [(REAL[name], *array(shape, dtype), args, has_out) for name, shape, dtype, args, has_out in REC.fft]
+    ffts = []
+    for name, shape, dtype, args, kwargs in REC.fft:
+        if kwargs.get("overwrite_x"):
+            # in place on a kept array: the unitary norm keeps it from shrinking call after call
+            # (the same single scaling pass as the recorded norm)
+            kwargs = dict(kwargs, norm="ortho")
+        ffts.append((REAL[name], array(shape, dtype), args, kwargs))
     best = {"normals": np.inf, "fft": np.inf, "bp": np.inf}
     for _ in range(repeats):
         t = time.thread_time()
@@ -153,8 +163,8 @@ def replay(repeats: int = 3) -> dict[str, float]:
             rng.standard_normal(size, dtype)
         best["normals"] = min(best["normals"], time.thread_time() - t)
         t = time.thread_time()
-        for fn, a, out, args, has_out in ffts:
-            fn(a, *args, out if has_out and fn is REAL["c2c"] else None, 1)
+        for fn, a, args, kwargs in ffts:
+            fn(a, *args, **kwargs)
         best["fft"] = min(best["fft"], time.thread_time() - t)
         t = time.thread_time()
         for dec, probs, hard in REC.bp:
