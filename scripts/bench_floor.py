@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 class Recorder:
-    """The kernel calls made while ``on``: (kind, replay closure inputs)."""
+    """The kernel calls made while ``on``, by kind."""
 
     def __init__(self):
         self.on = False
@@ -116,6 +116,7 @@ def install_hooks() -> None:
 
 
 def build_runner(config: str, work: Path):
+    """A ScenarioRunner on ``config`` (scene written under ``work``)."""
     from veriloc_rt import config as cfgm
     from veriloc_rt.sim import engine as eng, run_folder as keys, runner as run
 
@@ -184,9 +185,16 @@ def main() -> int:
     if args.points < 1 or args.cores < 1 or args.target_s <= 0:
         print("error: --points, --cores, --target-s: must be positive", file=sys.stderr)
         return 2
+    from veriloc_rt.errors import InputError
+
     install_hooks()
     with tempfile.TemporaryDirectory() as tmp:
-        return measure(build_runner(args.config, Path(tmp)), args)
+        try:
+            r = build_runner(args.config, Path(tmp))
+        except InputError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        return measure(r, args)
 
 
 def measure(r, args) -> int:
