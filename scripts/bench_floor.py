@@ -115,17 +115,6 @@ def install_hooks() -> None:
         setattr(scipy.fft, name, wrapped)
 
 
-def build_runner(config: str, work: Path):
-    """A ScenarioRunner on ``config`` (scene written under ``work``)."""
-    from veriloc_rt import config as cfgm
-    from veriloc_rt.sim import engine as eng, run_folder as keys, runner as run
-
-    cfg = cfgm.load_config(config)
-    geo = eng.build_geometry(cfg, work / "scene")
-    prop = eng.compute_propagation(cfg, geo, None, "default", workers=1)
-    return run.ScenarioRunner(cfg, geo, prop, keys.run_keys(cfg, len(geo.bs_pos)))
-
-
 def chain_cpu(r, points) -> float:
     """Thread CPU seconds of the chains of ``points``."""
     t = time.thread_time()
@@ -185,12 +174,13 @@ def main() -> int:
     if args.points < 1 or args.cores < 1 or args.target_s <= 0:
         print("error: --points, --cores, --target-s: must be positive", file=sys.stderr)
         return 2
+    from ab_chains import runner   # this folder's: a ScenarioRunner of a package on a config
     from veriloc_rt.errors import InputError
 
     install_hooks()
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            r = build_runner(args.config, Path(tmp))
+            r = runner("veriloc_rt", args.config, None, Path(tmp))
         except InputError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
