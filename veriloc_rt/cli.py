@@ -381,9 +381,10 @@ def cmd_validate(args) -> int:
 
 
 def _serve(server, args, page: str = "") -> int:
-    """Serve ``server`` until Ctrl-C (or, with ``--watch-stdin``, until stdin closes)."""
-    print(f"live view of {server.view.folder}: {server.url}{page}", flush=True)
-    _open_browser(server.url + page, args)
+    """Serve ``server`` until Ctrl-C (or, with ``--watch-stdin``, until stdin closes); print
+    and open its URL, which holds the session token."""
+    print(f"live view of {server.view.folder}: {server.page_url(page)}", flush=True)
+    _open_browser(server.page_url(page), args)
     if getattr(args, "watch_stdin", False):
         import threading
 
@@ -400,11 +401,24 @@ def _serve(server, args, page: str = "") -> int:
 
 
 def cmd_view(args) -> int:
+    from .inputs import check_path
     from .sim.live.server import LiveServer
 
-    if Path(args.dir).exists() and not Path(args.dir).is_dir():
-        raise InputError(args.dir, "not a folder (give a run's --out folder)")
-    return _serve(LiveServer(args.dir, port=_port(args.port)), args)
+    try:
+        folder = check_path(args.dir, args.dir)
+        if folder.exists() and not folder.is_dir():
+            raise InputError(args.dir, "not a folder (give a run's --out folder)")
+        # run --live (--watch-stdin) views the folder its run is about to create
+        if not folder.exists() and not args.watch_stdin:
+            raise InputError(args.dir, "does not exist (give a run's --out folder)")
+        server = LiveServer(folder, port=_port(args.port))
+    except InputError as exc:
+        if not args.watch_stdin:
+            raise
+        # for run --live, which reads this process's first output line
+        print(f"error: {exc}", flush=True)
+        return 2
+    return _serve(server, args)
 
 
 def cmd_edit(args) -> int:
@@ -413,8 +427,8 @@ def cmd_edit(args) -> int:
 
     if args.config is not None and Path(args.config).exists():
         editor_config(args.config)    # a bad file: the one-line error now, not in the page
-    return _serve(LiveServer(args.out, config_path=args.config, port=_port(args.port)), args,
-                  "edit")
+    return _serve(LiveServer(args.out, config_path=args.config, port=_port(args.port),
+                             edit=True), args, "edit")
 
 
 def cmd_config(args) -> int:
