@@ -71,11 +71,11 @@ def _out(path: str) -> Path:
     return check_out_dir(path, "--out")
 
 
-def _port(port: int | None) -> int:
-    from .sim.live.server import DEFAULT_PORT
-
+def _port(port: int | None) -> int | None:
+    """``--port`` checked; None when not given (the default port, or a free one when taken:
+    a port given is used or is an error)."""
     if port is None:
-        return DEFAULT_PORT
+        return None
     if not 0 <= port <= 65535:
         raise InputError("--port", f"got {port}, expected 0..65535 (0: any free port)")
     return port

@@ -164,3 +164,23 @@ def test_a_run_the_editor_starts_that_fails_shows_its_error_line(tmp_path, capsy
     finally:
         server.stop_run()
         server.shutdown()
+
+
+def test_a_taken_default_port_falls_back_but_a_given_one_is_an_error(tmp_path, monkeypatch):
+    import socket
+
+    from veriloc_rt.errors import InputError
+    from veriloc_rt.sim.live import server as live_server
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        monkeypatch.setattr(live_server, "DEFAULT_PORT", port)
+        s = LiveServer(tmp_path, port=None)     # no --port: the default, else a free one
+        try:
+            assert s.port not in (port, 0)
+        finally:
+            s.shutdown()
+        with pytest.raises(InputError, match=f"^--port: {port} is in use by another program"):
+            LiveServer(tmp_path, port=port)     # --port given: that one or an error

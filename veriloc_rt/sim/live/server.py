@@ -227,7 +227,8 @@ class LiveServer:
     :param config_path: the config file the editor edits and saves (None: the built-in
         default or the folder's run's config, saved to the new file ``<folder>.json`` beside
         the run folder, which must not exist yet)
-    :param port: the port; 0 picks a free one; a taken :data:`DEFAULT_PORT` falls back to 0
+    :param port: the port given (``--port``; 0 picks a free one), or None: :data:`DEFAULT_PORT`,
+        or a free one when it is taken
     :param edit: serve the editor's saves and runs (``veriloc-rt edit``); False: the view and
         the editor's checks only (``veriloc-rt view``)
     :raises InputError: ``--port`` in use or not usable; without ``config_path``, ``edit`` and
@@ -235,7 +236,7 @@ class LiveServer:
     """
 
     def __init__(self, folder: str | Path, config_path: str | Path | None = None,
-                 port: int = DEFAULT_PORT, edit: bool = False):
+                 port: int | None = None, edit: bool = False):
         self.view = RunFolderState(folder)
         self.config_path = Path(config_path) if config_path is not None else None
         self.edit = edit
@@ -255,11 +256,12 @@ class LiveServer:
         self.run_process: RunProcess | None = None
         self._lock = threading.Lock()
         try:
-            self.httpd = _HTTPServer((HOST, port), _handler(self))
+            self.httpd = _HTTPServer((HOST, DEFAULT_PORT if port is None else port),
+                                     _handler(self))
         except OSError as exc:
-            if port != DEFAULT_PORT:
+            if port is not None:
                 raise _port_error(port, exc) from None
-            log.info("port %d is taken; using a free one", port)
+            log.info("port %d is taken; using a free one", DEFAULT_PORT)
             try:
                 self.httpd = _HTTPServer((HOST, 0), _handler(self))
             except OSError as exc2:
@@ -583,7 +585,7 @@ class ViewProcess:
         return self.proc.wait()
 
 
-def start_view_process(folder: str | Path, port: int = DEFAULT_PORT,
+def start_view_process(folder: str | Path, port: int | None = None,
                        timeout_s: float = 60.0) -> ViewProcess:
     """Start ``veriloc-rt view --no-browser --watch-stdin -- FOLDER`` (:func:`cli_command`) and
     return it with its URL, session token included (the last word of its first output line).
@@ -592,8 +594,8 @@ def start_view_process(folder: str | Path, port: int = DEFAULT_PORT,
     :raises InputError: the error line it printed instead (e.g. ``--port`` in use)
     :raises RuntimeError: when it does not report a URL within ``timeout_s``
     """
-    cmd = cli_command("view", "--port", str(port), "--no-browser", "--watch-stdin", "--",
-                      str(folder))
+    flags = [] if port is None else ["--port", str(port)]   # None: as LiveServer's
+    cmd = cli_command("view", *flags, "--no-browser", "--watch-stdin", "--", str(folder))
     proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     got: list[str] = []
     reader = threading.Thread(target=lambda: got.append(proc.stdout.readline()), daemon=True)
