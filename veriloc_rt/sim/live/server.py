@@ -478,6 +478,26 @@ def _handler(server: LiveServer) -> type:
             return True
 
         def do_GET(self):  # noqa: N802 - http.server's name
+            self._safely(self._get)
+
+        def do_POST(self):  # noqa: N802
+            self._safely(self._post)
+
+        def _safely(self, method) -> None:
+            """``method()``; an unexpected error is answered 500 with one line (and logged),
+            not a dropped connection."""
+            try:
+                method()
+            except OSError:
+                raise   # the connection itself failed: handle() closes it quietly
+            except Exception as exc:  # noqa: BLE001 - a bug: one line, details with -vv
+                log.error("%s %s failed: %s: %s", self.command, urlparse(self.path).path,
+                          type(exc).__name__, exc, exc_info=log.isEnabledFor(logging.DEBUG))
+                self.close_connection = True
+                self._refuse(HTTPStatus.INTERNAL_SERVER_ERROR, "server",
+                             f"internal error ({type(exc).__name__}); the server's log has it")
+
+        def _get(self) -> None:
             url = urlparse(self.path)
             path = url.path
             if not self._gate(api=path.startswith("/api/")):
@@ -513,7 +533,7 @@ def _handler(server: LiveServer) -> type:
                     return self._json(_error(exc))
             return self._send(b"not found", "text/plain", HTTPStatus.NOT_FOUND)
 
-        def do_POST(self):  # noqa: N802
+        def _post(self) -> None:
             route = urlparse(self.path).path
             if not self._gate(api=True):
                 return
