@@ -30,7 +30,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from veriloc_rt.sim.live.server import MAX_HANDLERS, TIMEOUT_S, TOKEN_HEADER
+from veriloc_rt.sim.live.server import MAX_HANDLERS, REQUEST_DEADLINE_S, TIMEOUT_S, TOKEN_HEADER
 
 #: the installed console script (what a user runs)
 ENTRY = Path(sys.executable).with_name("veriloc-rt")
@@ -391,6 +391,33 @@ def test_a_slow_client_neither_blocks_others_nor_keeps_its_thread(editor):
     waited = time.monotonic() - t0
     assert TIMEOUT_S - 1.0 <= waited <= TIMEOUT_S + PROMPT_S, waited
     slow.close()
+
+
+def test_a_trickling_client_is_cut_off_at_the_request_deadline(editor):
+    s, _cfg, _out = editor
+    slow = socket.create_connection(("127.0.0.1", s.port), timeout=PROMPT_S)
+    t0 = time.monotonic()
+    slow.sendall(f"POST /api/validate HTTP/1.1\r\nHost: 127.0.0.1:{s.port}\r\n"
+                 f"{TOKEN_HEADER}: {s.token}\r\nX-Veriloc: 1\r\n"
+                 "Content-Type: application/json\r\nContent-Length: 1000\r\n\r\n".encode())
+    closed = None
+    # a byte of body well within the silence timeout, again and again
+    while time.monotonic() - t0 < REQUEST_DEADLINE_S + 2 * PROMPT_S:
+        try:
+            slow.sendall(b" ")
+        except OSError:
+            closed = time.monotonic() - t0
+            break
+        slow.settimeout(TIMEOUT_S / 4)
+        try:
+            if slow.recv(1024) == b"":
+                closed = time.monotonic() - t0
+                break
+        except socket.timeout:
+            pass
+    slow.close()
+    assert closed is not None and REQUEST_DEADLINE_S - 1.0 <= closed <= REQUEST_DEADLINE_S + PROMPT_S
+    assert s.request("GET", "/api/form", timeout=PROMPT_S)[0] == 200
 
 
 def test_connections_beyond_the_limit_get_503_then_service_resumes(editor):

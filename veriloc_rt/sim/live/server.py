@@ -31,9 +31,10 @@ Who may ask, and what:
   nothing is written or started; ``veriloc-rt view`` saves and starts nothing;
 * a request body is JSON of at most :data:`MAX_BODY_BYTES`, parsed with the package's depth
   limit, each field type-checked: a bad one is 400 with one line, never a dropped connection;
-* each connection times out after :data:`TIMEOUT_S` of silence and at most
-  :data:`MAX_HANDLERS` are handled at once (more get 503), so slow clients cannot hold the
-  server; clients that hang up are logged at debug level, not printed;
+* each connection times out after :data:`TIMEOUT_S` of silence, a request must arrive whole
+  within :data:`REQUEST_DEADLINE_S`, and at most :data:`MAX_HANDLERS` connections are handled
+  at once (more get 503), so slow clients cannot hold the server; clients that hang up are
+  logged at debug level, not printed;
 * messages from checking the files a config names only name the field
   (:func:`~veriloc_rt.sim.live.editor.check_config` with ``file_details=False``).
 
@@ -54,9 +55,11 @@ import json
 import logging
 import os
 import secrets
+import socket
 import subprocess
 import sys
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 from http import HTTPStatus
@@ -74,6 +77,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["LiveServer", "RunProcess", "ViewProcess", "start_view_process", "cli_command",
            "Refused", "DEFAULT_PORT", "HOST", "STATIC_FILES", "TOKEN_HEADER", "TIMEOUT_S",
+           "REQUEST_DEADLINE_S",
            "MAX_HANDLERS", "SECURITY_HEADERS"]
 
 #: the only address served
@@ -95,6 +99,9 @@ TOKEN_BYTES = 32
 #: seconds a connection may stay silent (mid-request or idle between requests) before it is
 #: closed: a slow or short body holds a thread this long at most
 TIMEOUT_S = 10.0
+#: seconds from a request's first byte to the end of its body: a client that trickles a byte
+#: now and then (each within :data:`TIMEOUT_S`) is cut off here
+REQUEST_DEADLINE_S = 20.0
 #: connections handled at once; more are answered 503 at once (a browser opens about six)
 MAX_HANDLERS = 32
 #: headers of every response: no framing (clickjacking of the Save-and-run button), scripts,
@@ -186,7 +193,41 @@ class _HTTPServer(ThreadingHTTPServer):
 
     def __init__(self, address, handler, max_handlers: int = MAX_HANDLERS):
         self._slots = threading.BoundedSemaphore(max_handlers)
+        #: connection -> monotonic time by which its request must have been read
+        self._deadlines: dict = {}
+        self._deadline_lock = threading.Lock()
+        self._closed = threading.Event()
         super().__init__(address, handler)
+        threading.Thread(target=self._watch_deadlines, daemon=True,
+                         name="veriloc-live-deadlines").start()
+
+    def arm(self, conn, seconds: float) -> None:
+        """Shut ``conn`` down unless :meth:`disarm` comes within ``seconds``."""
+        with self._deadline_lock:
+            self._deadlines[conn] = time.monotonic() + seconds
+
+    def disarm(self, conn) -> None:
+        with self._deadline_lock:
+            self._deadlines.pop(conn, None)
+
+    def _watch_deadlines(self) -> None:
+        while not self._closed.wait(0.5):
+            now = time.monotonic()
+            with self._deadline_lock:
+                late = [c for c, t in self._deadlines.items() if t < now]
+                for c in late:
+                    del self._deadlines[c]
+            for c in late:   # the handler's blocked read returns; it ends the connection
+                log.debug("a request took over %g s to arrive; connection closed",
+                          REQUEST_DEADLINE_S)
+                try:
+                    c.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
+
+    def server_close(self):
+        self._closed.set()
+        super().server_close()
 
     def process_request(self, request, client_address):
         if not self._slots.acquire(blocking=False):
@@ -429,6 +470,14 @@ def _handler(server: LiveServer) -> type:
         def log_message(self, fmt, *args):   # requests to the debug log, not to stderr
             log.debug("%s " + fmt, self.address_string(), *args)
 
+        def handle_one_request(self):
+            # from the request's first byte to its body's last: REQUEST_DEADLINE_S at most
+            self.server.arm(self.connection, REQUEST_DEADLINE_S)
+            try:
+                super().handle_one_request()
+            finally:
+                self.server.disarm(self.connection)
+
         def handle(self):
             try:
                 super().handle()
@@ -498,6 +547,7 @@ def _handler(server: LiveServer) -> type:
                              f"internal error ({type(exc).__name__}); the server's log has it")
 
         def _get(self) -> None:
+            self.server.disarm(self.connection)   # read; answering may take its time
             url = urlparse(self.path)
             path = url.path
             if not self._gate(api=path.startswith("/api/")):
@@ -554,6 +604,7 @@ def _handler(server: LiveServer) -> type:
                 return self._refuse(HTTPStatus.BAD_REQUEST, "Content-Length", "expected the "
                                     f"body's length, 0 .. {MAX_BODY_BYTES} bytes")
             raw = self.rfile.read(n)
+            self.server.disarm(self.connection)   # read; answering may take its time
             if len(raw) < n:
                 self.close_connection = True
                 return self._refuse(HTTPStatus.BAD_REQUEST, "request", "body shorter than "
