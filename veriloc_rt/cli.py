@@ -514,12 +514,12 @@ def build_parser() -> argparse.ArgumentParser:
     w.set_defaults(func=cmd_view)
     e = sub.add_parser("edit", help="edit a config in the browser (fields, ranges, defaults), "
                        "validate, save it and start a run with its live view")
-    e.add_argument("config", nargs="?", help="JSON config file to edit and save to (a new file "
-                   "starts from the built-in default); default: the built-in default, saved "
-                   "beside --out")
-    e.add_argument("--out", default="results", help="output folder of the run it starts "
-                   "(default: results; editable in the page)")
-    _browser_flags(e, "port (default 8765, or a free one)")
+    e.add_argument("config", nargs="?", help="JSON config file to edit, the only file it saves "
+                   "to (a new file starts from the built-in default); default: the built-in "
+                   "default, saved to the new file OUT.json beside --out (refused if it exists)")
+    e.add_argument("--out", default="results", help="output folder of the runs it starts, the "
+                   "only one (default: results)")
+    _browser_flags(e, "port (default 8765, or a free one when taken)")
     e.set_defaults(func=cmd_edit)
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")
