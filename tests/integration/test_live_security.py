@@ -552,3 +552,25 @@ def test_random_gets_always_get_an_answer(fuzz_server, route, query):
     assert status == 200, (status, raw)
     json.loads(raw)
     assert s.proc.poll() is None
+
+
+def test_edit_without_config_writes_only_its_new_default_file(tmp_path):
+    from veriloc_rt.sim.live.server import LiveServer, Refused
+
+    server = LiveServer(tmp_path / "r", port=0, edit=True)
+    try:
+        target = tmp_path / "r.json"
+        assert server.editor_state()["path"] == str(target) and not target.exists()
+        # written by another program after the start: not overwritten
+        target.write_text("someone else's")
+        with pytest.raises(Refused, match="appeared after the editor started") as e:
+            server.save(TINY)
+        assert e.value.status == 409 and target.read_text() == "someone else's"
+        target.unlink()
+        # the editor's own file: written, and written again
+        assert server.save(TINY) == target and json.loads(target.read_text()) == TINY
+        changed = {**TINY, "seed": 3}
+        assert server.save(changed, str(target)) == target
+        assert json.loads(target.read_text()) == changed
+    finally:
+        server.shutdown()
