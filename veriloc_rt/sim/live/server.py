@@ -240,11 +240,15 @@ class _HTTPServer(ThreadingHTTPServer):
                 pass
             self.shutdown_request(request)
             return
+        t = threading.Thread(target=self.process_request_thread, args=(request, client_address),
+                             daemon=True, name="veriloc-live-request")
         try:
-            super().process_request(request, client_address)
-        except BaseException:
+            t.start()
+        except RuntimeError:   # no thread could be made, so none will release the slot
             self._slots.release()
             raise
+        # (a Ctrl-C while the thread starts is not caught here: the started thread releases
+        # its slot, and the KeyboardInterrupt must reach serve_forever's caller)
 
     def process_request_thread(self, request, client_address):
         try:
