@@ -46,10 +46,11 @@ def main(argv: list[str] | None = None) -> int:
                 viewport={"width": a.width, "height": a.height})
             page = ctx.new_page()
             page.goto(server.url)
-            page.wait_for_function("+document.getElementById('map').dataset.drawn >= 1")
+            # predicates as functions: a plain expression is eval'd, which the page's CSP forbids
+            page.wait_for_function("() => +document.getElementById('map').dataset.drawn >= 1")
             page.click(f"#tabs button:text-is('{a.scenario}')")
             page.wait_for_function(
-                f"document.getElementById('decisions-scenario').textContent.includes('{a.scenario}')"
+                f"() => document.getElementById('decisions-scenario').textContent.includes('{a.scenario}')"
                 " && +document.getElementById('map').dataset.drawn >= 1")
             png = page.screenshot(full_page=True)
             ctx.close()

@@ -71,11 +71,11 @@ def _out(path: str) -> Path:
     return check_out_dir(path, "--out")
 
 
-def _port(port: int | None) -> int:
-    from .sim.live.server import DEFAULT_PORT
-
+def _port(port: int | None) -> int | None:
+    """``--port`` checked; None when not given (the default port, or a free one when taken:
+    a port given is used or is an error)."""
     if port is None:
-        return DEFAULT_PORT
+        return None
     if not 0 <= port <= 65535:
         raise InputError("--port", f"got {port}, expected 0..65535 (0: any free port)")
     return port
@@ -381,9 +381,10 @@ def cmd_validate(args) -> int:
 
 
 def _serve(server, args, page: str = "") -> int:
-    """Serve ``server`` until Ctrl-C (or, with ``--watch-stdin``, until stdin closes)."""
-    print(f"live view of {server.view.folder}: {server.url}{page}", flush=True)
-    _open_browser(server.url + page, args)
+    """Serve ``server`` until Ctrl-C (or, with ``--watch-stdin``, until stdin closes); print
+    and open its URL, which holds the session token."""
+    print(f"live view of {server.view.folder}: {server.page_url(page)}", flush=True)
+    _open_browser(server.page_url(page), args)
     if getattr(args, "watch_stdin", False):
         import threading
 
@@ -400,11 +401,24 @@ def _serve(server, args, page: str = "") -> int:
 
 
 def cmd_view(args) -> int:
+    from .inputs import check_path
     from .sim.live.server import LiveServer
 
-    if Path(args.dir).exists() and not Path(args.dir).is_dir():
-        raise InputError(args.dir, "not a folder (give a run's --out folder)")
-    return _serve(LiveServer(args.dir, port=_port(args.port)), args)
+    try:
+        folder = check_path(args.dir, args.dir)
+        if folder.exists() and not folder.is_dir():
+            raise InputError(args.dir, "not a folder (give a run's --out folder)")
+        # run --live (--watch-stdin) views the folder its run is about to create
+        if not folder.exists() and not args.watch_stdin:
+            raise InputError(args.dir, "does not exist (give a run's --out folder)")
+        server = LiveServer(folder, port=_port(args.port))
+    except InputError as exc:
+        if not args.watch_stdin:
+            raise
+        # for run --live, which reads this process's first output line
+        print(f"error: {exc}", flush=True)
+        return 2
+    return _serve(server, args)
 
 
 def cmd_edit(args) -> int:
@@ -413,8 +427,8 @@ def cmd_edit(args) -> int:
 
     if args.config is not None and Path(args.config).exists():
         editor_config(args.config)    # a bad file: the one-line error now, not in the page
-    return _serve(LiveServer(args.out, config_path=args.config, port=_port(args.port)), args,
-                  "edit")
+    return _serve(LiveServer(args.out, config_path=args.config, port=_port(args.port),
+                             edit=True), args, "edit")
 
 
 def cmd_config(args) -> int:
@@ -500,12 +514,12 @@ def build_parser() -> argparse.ArgumentParser:
     w.set_defaults(func=cmd_view)
     e = sub.add_parser("edit", help="edit a config in the browser (fields, ranges, defaults), "
                        "validate, save it and start a run with its live view")
-    e.add_argument("config", nargs="?", help="JSON config file to edit and save to (a new file "
-                   "starts from the built-in default); default: the built-in default, saved "
-                   "beside --out")
-    e.add_argument("--out", default="results", help="output folder of the run it starts "
-                   "(default: results; editable in the page)")
-    _browser_flags(e, "port (default 8765, or a free one)")
+    e.add_argument("config", nargs="?", help="JSON config file to edit, the only file it saves "
+                   "to (a new file starts from the built-in default); default: the built-in "
+                   "default, saved to the new file OUT.json beside --out (refused if it exists)")
+    e.add_argument("--out", default="results", help="output folder of the runs it starts, the "
+                   "only one (default: results)")
+    _browser_flags(e, "port (default 8765, or a free one when taken)")
     e.set_defaults(func=cmd_edit)
     s = sub.add_parser("scene", help="write the scene (XML + PLY) and a top-view PNG")
     s.add_argument("config", nargs="?", help="JSON config file")

@@ -4,7 +4,9 @@
 A tiny UMa run started with ``--live``: the page's progress and decision timeline advance
 between two reads while the run goes, the map has drawn pixels and the timeline five rows.
 The editor rejects an out-of-range field with the package's own line and starts a run from a
-valid config, whose live view then follows it.
+valid config, whose live view then follows it. The pages work under their Content Security
+Policy (no violation reported), carry the session token of the printed URL, show "no access"
+without it, and cannot be framed by another page.
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ CHROMIUM = Path("/usr/bin/chromium")
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at "
                                 "/usr/bin/chromium (.ci/run installs it: apt-get install chromium)")
 
-ROOT = Path(__file__).resolve().parents[2]
+#: the installed console script (what a user runs)
+ENTRY = Path(sys.executable).with_name("veriloc-rt")
 #: chromium without anything that reaches the network or the user's profile
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -49,26 +52,28 @@ MIN_DRAWN_SHARE = 0.05
 COLOUR_TOL = 30
 
 
-def _env() -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    return env
-
-
 def _start(args: list[str], cwd: Path) -> tuple[subprocess.Popen, str]:
-    """``python -m veriloc_rt.cli ARGS`` in its own process group; its URL (the last word of
-    its first output line)."""
-    proc = subprocess.Popen([sys.executable, "-m", "veriloc_rt.cli", *args], cwd=cwd,
-                            env=_env(), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            stdin=subprocess.DEVNULL, text=True, start_new_session=True)
+    """``veriloc-rt ARGS`` in its own process group; its URL (the last word of its first
+    output line, with the session token)."""
+    proc = subprocess.Popen([str(ENTRY), *args], cwd=cwd, stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL, text=True,
+                            start_new_session=True)
     line: list[str] = []
     t = threading.Thread(target=lambda: line.append(proc.stdout.readline()), daemon=True)
     t.start()
     t.join(WAIT_MS / 1000)
-    if not line or not line[0].split():
+    if not line or not line[0].split() or "?token=" not in line[0]:
         _stop(proc)
-        pytest.fail(f"{args[0]} printed no URL")
+        pytest.fail(f"{args[0]} printed no URL with a token: {line!r}")
     return proc, line[0].split()[-1]
+
+
+def _watch(page) -> list[str]:
+    """The page's script errors and console errors (a CSP violation is one)."""
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    return errors
 
 
 def _stop(proc: subprocess.Popen) -> None:
@@ -116,13 +121,12 @@ def test_live_run_progress_timeline_and_map(tmp_path, browser):
                         "--workers", "1"], tmp_path)
     try:
         page = browser.new_page()
-        errors: list[str] = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
+        errors = _watch(page)
         page.goto(url)
         # first read: the run is going and 'none' has some of its points, not all
         n = LIVE_RUN["trajectory"]["num_points"]
         page.wait_for_function(
-            "document.getElementById('status').textContent === 'running'"
+            "() => document.getElementById('status').textContent === 'running'"
             " && +document.getElementById('progress-none')?.dataset.done >= 1"
             f" && +document.getElementById('progress-none').dataset.done < {n}"
             " && +document.getElementById('decisions').dataset.points >= 1",
@@ -132,12 +136,12 @@ def test_live_run_progress_timeline_and_map(tmp_path, browser):
         assert 1 <= shown1 <= done1 < n
         # second read: both advanced
         page.wait_for_function(
-            f"+document.getElementById('progress-none').dataset.done > {done1}"
+            f"() => +document.getElementById('progress-none').dataset.done > {done1}"
             f" && +document.getElementById('decisions').dataset.points > {shown1}",
             timeout=WAIT_MS)
         rows = page.eval_on_selector_all(".decision-row", "rs => rs.map(r => r.dataset.detector)")
         assert rows == list(DETECTORS)
-        page.wait_for_function("+document.getElementById('map').dataset.drawn >= 1",
+        page.wait_for_function("() => +document.getElementById('map').dataset.drawn >= 1",
                                timeout=WAIT_MS)
         img = _pixels(page.locator("#map").screenshot())
         drawn = np.abs(img - BACKGROUND_RGB).max(axis=-1) > DRAWN_MIN_DIFF
@@ -159,8 +163,13 @@ def test_editor_rejects_out_of_range_then_starts_a_run(tmp_path, browser):
                         "--no-browser"], tmp_path)
     try:
         page = browser.new_page()
+        errors = _watch(page)
         page.goto(url)
         page.wait_for_selector("body[data-ready='1']", timeout=WAIT_MS)
+        # the file and the folder the editor was started on, shown and not editable
+        assert page.input_value("#save-path") == str(cfg)
+        assert page.input_value("#out-dir") == str(tmp_path / "run")
+        assert page.get_attribute("#save-path", "readonly") is not None
         field = "#f-trajectory-num_points"
         assert page.input_value(field) == "30"
         page.fill(field, "1")
@@ -171,11 +180,28 @@ def test_editor_rejects_out_of_range_then_starts_a_run(tmp_path, browser):
         assert page.get_attribute(".field.bad", "data-path") == "trajectory.num_points"
         page.fill(field, "12")
         page.click("#run")
-        page.wait_for_url(url.rsplit("/", 1)[0] + "/", timeout=WAIT_MS)
-        page.wait_for_function("+document.getElementById('progress-none')?.dataset.done >= 1",
+        base, token = url.split("/edit?token=")
+        page.wait_for_url(f"{base}/?token={token}", timeout=WAIT_MS)   # the token kept
+        page.wait_for_function("() => +document.getElementById('progress-none')?.dataset.done >= 1",
                                timeout=WAIT_MS)
         assert json.loads(cfg.read_text())["trajectory"]["num_points"] == 12
         assert (tmp_path / "run" / "run.json").exists()
+        # the live view's link back to the editor keeps the token too
+        assert page.get_attribute("a[data-page='/edit']", "href") == f"/edit?token={token}"
+        assert errors == []
+        page.close()
+        # without the token the page loads but reads nothing
+        page = browser.new_page()
+        page.goto(base + "/")
+        page.wait_for_function("() => document.getElementById('status').textContent"
+                               ".startsWith('no access')", timeout=WAIT_MS)
+        page.close()
+        # another page cannot frame the editor (frame-ancestors 'none', X-Frame-Options)
+        page = browser.new_page()
+        page.set_content(f'<iframe id="f" src="{url}" width="800" height="600"></iframe>')
+        page.wait_for_timeout(2000)
+        framed = [f for f in page.frames if f != page.main_frame]
+        assert framed and all(f.query_selector("#run") is None for f in framed)
         page.close()
     finally:
         _stop(proc)

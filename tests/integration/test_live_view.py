@@ -15,7 +15,7 @@ import pytest
 from veriloc_rt.cli import main
 from veriloc_rt.config import Config, config_to_dict
 from veriloc_rt.detectors.outcomes import OUTCOMES
-from veriloc_rt.sim.live.server import LiveServer
+from veriloc_rt.sim.live.server import TOKEN_HEADER, LiveServer
 from veriloc_rt.sim.live.state import RunFolderState
 
 #: a tiny UMa run: two scenarios, no encrypted-PRS pass, DigSig from the HMAC chain's checks
@@ -66,33 +66,37 @@ def test_state_of_a_finished_run_equals_its_metrics(finished):
     assert [xy for xy in zip(p["x_true"], p["y_true"])] == [tuple(u) for u in scene["ue"]]
 
 
-def _get(url: str):
-    with urllib.request.urlopen(url, timeout=30) as r:
+def _get(url: str, token: str | None = None):
+    req = urllib.request.Request(url, headers={} if token is None else {TOKEN_HEADER: token})
+    with urllib.request.urlopen(req, timeout=30) as r:
         return r.status, r.headers.get("Content-Type"), r.read()
 
 
 def test_http_routes(finished):
     server = LiveServer(finished, port=0).start()
     try:
-        base = server.url
-        status, ctype, body = _get(base + "api/state?scenario=none&from=6")
+        base, token = f"http://127.0.0.1:{server.port}/", server.token
+        assert server.url == base + "?token=" + token
+        status, ctype, body = _get(base + "api/state?scenario=none&from=6", token)
         st = json.loads(body)
         assert status == 200 and ctype.startswith("application/json")
         assert st["points"]["from"] == 6 and st["points"]["index"] == [6, 7]
         for page, marker in (("", b"decisions"), ("edit", b"Save and run")):
             status, ctype, body = _get(base + page)
             assert ctype.startswith("text/html") and marker in body
-        fields = json.loads(_get(base + "api/form")[2])["fields"]
+        fields = json.loads(_get(base + "api/form", token)[2])["fields"]
         assert any(f["path"] == "trajectory.num_points" for f in fields)
-        cfg = json.loads(_get(base + "api/config")[2])
+        cfg = json.loads(_get(base + "api/config", token)[2])
         assert cfg["config"]["trajectory"]["num_points"] == 8   # the run's own config
+        assert cfg["editable"] is False and cfg["path"] == ""   # a view saves nothing
         with pytest.raises(urllib.error.HTTPError) as e:
             _get(base + "static/../state.py")
         assert e.value.code == 404
         e.value.close()
         # a POST without the page's header is refused (another origin cannot add it)
         req = urllib.request.Request(base + "api/validate", data=b'{"config": {}}',
-                                     headers={"Content-Type": "application/json"})
+                                     headers={"Content-Type": "application/json",
+                                              TOKEN_HEADER: token})
         with pytest.raises(urllib.error.HTTPError) as e:
             urllib.request.urlopen(req, timeout=30)
         assert e.value.code == 403
@@ -100,6 +104,14 @@ def test_http_routes(finished):
         req.add_header("X-Veriloc", "1")
         with urllib.request.urlopen(req, timeout=30) as r:
             assert json.loads(r.read()) == {"ok": True}
+        # a view server saves nothing
+        save = urllib.request.Request(base + "api/save", data=b'{"config": {}}',
+                                      headers=dict(req.header_items()))
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(save, timeout=30)
+        assert e.value.code == 403 and json.loads(e.value.read())["field"] == "edit"
+        e.value.close()
+        assert not (finished.parent / f"{finished.name}.json").exists()
     finally:
         server.shutdown()
 
@@ -122,10 +134,10 @@ def test_bad_flags_of_the_live_commands_are_one_line(tmp_path, capsys, args, lin
 
 
 def test_editor_on_a_new_config_file_starts_from_the_default(tmp_path):
-    server = LiveServer(tmp_path / "out", config_path=tmp_path / "new.json", port=0)
+    server = LiveServer(tmp_path / "out", config_path=tmp_path / "new.json", port=0, edit=True)
     st = server.editor_state()
     assert st["path"] == str(tmp_path / "new.json") and st["out"] == str(tmp_path / "out")
-    assert st["config"] == config_to_dict(Config())
+    assert st["config"] == config_to_dict(Config()) and st["editable"] is True
     # closing a server that never served returns at once (http.server's shutdown would wait)
     t = threading.Thread(target=server.shutdown)
     t.start()
@@ -135,7 +147,7 @@ def test_editor_on_a_new_config_file_starts_from_the_default(tmp_path):
 
 def test_a_run_the_editor_starts_that_fails_shows_its_error_line(tmp_path, capsys):
     (tmp_path / "taken").write_text("a file, not a folder")
-    server = LiveServer(tmp_path / "unused", port=0)
+    server = LiveServer(tmp_path / "taken", config_path=tmp_path / "c.json", port=0, edit=True)
     try:
         res = server.start_run(dict(TINY), str(tmp_path / "c.json"), str(tmp_path / "taken"))
         assert res["ok"] and json.loads((tmp_path / "c.json").read_text()) == TINY
@@ -152,3 +164,23 @@ def test_a_run_the_editor_starts_that_fails_shows_its_error_line(tmp_path, capsy
     finally:
         server.stop_run()
         server.shutdown()
+
+
+def test_a_taken_default_port_falls_back_but_a_given_one_is_an_error(tmp_path, monkeypatch):
+    import socket
+
+    from veriloc_rt.errors import InputError
+    from veriloc_rt.sim.live import server as live_server
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        monkeypatch.setattr(live_server, "DEFAULT_PORT", port)
+        s = LiveServer(tmp_path, port=None)     # no --port: the default, else a free one
+        try:
+            assert s.port not in (port, 0)
+        finally:
+            s.shutdown()
+        with pytest.raises(InputError, match=f"^--port: {port} is in use by another program"):
+            LiveServer(tmp_path, port=port)     # --port given: that one or an error

@@ -6,25 +6,36 @@ doc; the page draws one input per entry, so a field added to the config appears 
 with nothing to change here. :func:`check_config` validates an edited config with the
 package's own validation (:func:`~veriloc_rt.config.config_from_dict`, and on request the
 input checks of ``veriloc-rt config check``) and returns the same one-line
-``error: <field>: <problem>`` a run prints.
+``error: <field>: <problem>`` a run prints; for the page (``file_details=False``) an error found
+while reading the files the config names (:data:`FILE_FIELDS`) only names the field, since such
+a message may quote the file (a CSV row, a key's length) or tell whether a path exists.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import stat
 import tempfile
 from pathlib import Path
 
 from ...config import config_from_dict, config_schema, config_to_dict, load_config
 from ...errors import InputError
-from ...fileio import atomic_write_text
+from ...fileio import atomic_output
 from ..checks import check_inputs
 
 __all__ = ["form_fields", "range_text", "check_config", "editor_config", "save_config",
-           "set_field"]
+           "set_field", "named_files", "file_error", "FILE_FIELDS"]
 
 #: input kinds of the editor: ``kind`` of a :func:`form_fields` entry
 KINDS = ("integer", "number", "boolean", "string", "enum", "json")
+#: the config's fields that name files or folders the input checks read, with their kind, and
+#: the value that reads nothing
+FILE_FIELDS = {"scene.source": ("scene file", "canyon"),
+               "scene.osm": ("OpenStreetMap extract", ""),
+               "topology.sites": ("sites file", ""),
+               "trajectory.source": ("trajectory file", "generator"),
+               "security.keys_dir": ("key folder", None)}
 
 
 def _kind(prop: dict) -> str:
@@ -97,22 +108,64 @@ def set_field(data: dict, path: str, value) -> dict:
     return data
 
 
-def check_config(data, inputs: bool = False) -> InputError | None:
+def check_config(data, inputs: bool = False, file_details: bool = True) -> InputError | None:
     """None when ``data`` is a valid config, else the :class:`InputError` a run would raise
     (``f"error: {exc}"`` is the CLI's line; ``exc.field`` names the field).
 
     :param inputs: also every check of the run's inputs that ``veriloc-rt config check`` makes
         (:func:`~veriloc_rt.sim.checks.check_inputs`: scene, trajectory, key files; it builds
         the geometry, a second or so, and traces nothing)
+    :param file_details: False: an error of those checks, when the config names a file, is
+        :func:`file_error` (the field only), never the message, which may quote the file
     """
     try:
         cfg = config_from_dict(data)
-        if inputs:
-            with tempfile.TemporaryDirectory(prefix="veriloc-edit-") as tmp:
-                check_inputs(cfg, tmp)
     except InputError as exc:
         return exc
+    if not inputs:
+        return None
+    try:
+        with tempfile.TemporaryDirectory(prefix="veriloc-edit-") as tmp:
+            check_inputs(cfg, tmp)
+    except InputError as exc:
+        named = named_files(data)
+        return exc if file_details or not named else file_error(exc, named)
     return None
+
+
+def named_files(data: dict) -> dict[str, str]:
+    """``{field: path}`` of the :data:`FILE_FIELDS` that ``data`` (a valid config) sets to a
+    file or folder."""
+    out = {}
+    for field, (_kind, none) in FILE_FIELDS.items():
+        section, name = field.split(".")
+        value = (data.get(section) or {}).get(name)
+        if isinstance(value, str) and value != none and value != "":
+            out[field] = value
+    return out
+
+
+def file_error(exc: InputError, named: dict[str, str]) -> InputError:
+    """The page's form of ``exc``, an error of the input checks of a config that names the
+    files ``named`` (:func:`named_files`): the field whose file it concerns (the one the error
+    names, or whose path the error's file lies under; ``inputs`` when that is not known) and
+    that it cannot be used, nothing else: no content, no reason (missing, unreadable,
+    malformed look the same, so the page cannot probe paths either)."""
+    field = None
+    for f, value in named.items():
+        where = str(Path(value).expanduser())
+        if exc.field == f or exc.field.startswith(f + "[") or exc.field == value or (
+                exc.field.split(":")[0] in (value, where)) or exc.field.startswith(where + "/"):
+            field = f
+            break
+    if field is None and len(named) == 1:
+        field = next(iter(named))
+    hint = ("the page shows no file details: `veriloc-rt config check CONFIG` in a terminal "
+            "prints them")
+    if field is None:
+        return InputError("inputs", f"one of the files this config names ({', '.join(named)}) "
+                          f"cannot be used ({hint})")
+    return InputError(field, f"cannot be used as the {FILE_FIELDS[field][0]} ({hint})")
 
 
 def editor_config(path: str | Path | None) -> dict:
@@ -125,16 +178,33 @@ def editor_config(path: str | Path | None) -> dict:
 
 
 def save_config(data, path: str | Path) -> Path:
-    """Validate ``data`` and write it as JSON to ``path`` (atomically).
+    """Validate ``data`` and write it as JSON to ``path`` (atomically; an existing file keeps
+    its permission bits).
 
-    :raises InputError: the config's own error, or ``--save PATH: ...`` when it cannot be written
+    :raises InputError: the config's own error, or ``PATH: ...`` when it cannot be written
+        (a link, folder, FIFO or device at ``path`` is refused: it would be replaced)
     """
     exc = check_config(data)
     if exc is not None:
         raise exc
     p = Path(path).expanduser()
+    mode = None
     try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        return atomic_write_text(p, json.dumps(data, indent=2) + "\n")
+        st = os.lstat(p)
+    except FileNotFoundError:
+        pass
     except OSError as e:
-        raise InputError(f"--save {p}", f"cannot write it ({e.strerror or e})") from None
+        raise InputError(str(p), f"cannot write it ({e.strerror or e})") from None
+    else:
+        if not stat.S_ISREG(st.st_mode):
+            raise InputError(str(p), "not a regular file (a link, folder, FIFO or device); "
+                             "nothing written")
+        mode = stat.S_IMODE(st.st_mode)
+    try:
+        with atomic_output(p) as tmp:
+            tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+            if mode is not None:
+                os.chmod(tmp, mode)
+    except OSError as e:
+        raise InputError(str(p), f"cannot write it ({e.strerror or e})") from None
+    return p

@@ -21,6 +21,7 @@ import json
 import logging
 import math
 import os
+import stat
 import tempfile
 import threading
 import time
@@ -31,13 +32,15 @@ import numpy as np
 
 from ...config import config_from_dict
 from ...detectors.outcomes import DETECTORS, OUTCOMES
+from ...errors import InputError
+from ...inputs import read_bytes
 from ...report.results import CSV_COLUMNS, fields_to_row, results_path, scenario_metrics
 from ..run_folder import OWNER_FILE
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ResultsTail", "RateMeter", "RunFolderState", "scene_layer", "MAX_MESH_TRIANGLES",
-           "RATE_WINDOW_S"]
+__all__ = ["ResultsTail", "RateMeter", "RunFolderState", "scene_layer", "read_json",
+           "MAX_MESH_TRIANGLES", "RATE_WINDOW_S", "MAX_JSON_FILE_BYTES"]
 
 #: most roof triangles of a mesh scene sent to the page (the largest ones; a city mesh can
 #: hold millions, and a top view needs the outlines only)
@@ -46,6 +49,17 @@ MAX_MESH_TRIANGLES = 20_000
 RATE_WINDOW_S = 60.0
 #: coordinates sent to the page are rounded to this, m (the page draws at metre scale)
 COORD_STEP_M = 0.01
+#: largest run.json or metrics.json read, bytes (a run's are a few tens of kB)
+MAX_JSON_FILE_BYTES = 16 << 20
+
+
+def read_json(path: Path):
+    """The JSON in the regular file ``path``, or None when it is absent, not a regular file
+    (a FIFO is not waited on: opened non-blocking), too large or not JSON."""
+    try:
+        return json.loads(read_bytes(path, str(path), "file", MAX_JSON_FILE_BYTES))
+    except (InputError, ValueError, RecursionError):
+        return None
 
 
 class ResultsTail:
@@ -74,7 +88,10 @@ class ResultsTail:
         """Read the lines appended since the last poll; returns how many rows were added."""
         try:
             st = os.stat(self.path)
-        except FileNotFoundError:
+        except OSError:   # absent (or not reachable)
+            self._reset()
+            return 0
+        if not stat.S_ISREG(st.st_mode):   # a FIFO would block the read: nothing to show
             self._reset()
             return 0
         if st.st_ino != self._inode or st.st_size < self._offset:
@@ -82,9 +99,16 @@ class ResultsTail:
             self._inode = st.st_ino
         if st.st_size == self._offset:
             return 0
-        with open(self.path, "rb") as fh:
-            fh.seek(self._offset)
-            data = fh.read(st.st_size - self._offset)
+        try:
+            fd = os.open(self.path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+        except OSError:
+            return 0
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):   # replaced since the stat
+                return 0
+            data = os.pread(fd, st.st_size - self._offset, self._offset)
+        finally:
+            os.close(fd)
         cut = data.rfind(b"\n")
         if cut < 0:            # no complete line yet
             return 0
@@ -244,11 +268,15 @@ class RunFolderState:
 
     # -- run.json ---------------------------------------------------------------------------
     def _run_info(self) -> dict | None:
-        try:
-            info = json.loads((self.folder / "run.json").read_text())
-        except (OSError, ValueError):   # absent, or (never: written atomically) partial
-            return None
+        # absent, not a regular file, or (never: written atomically) partial: None
+        info = read_json(self.folder / "run.json")
         return info if isinstance(info, dict) and "config" in info else None
+
+    def run_config(self) -> dict | None:
+        """The config in the folder's ``run.json`` (None without one)."""
+        info = self._run_info()
+        cfg = info["config"] if info is not None else None
+        return cfg if isinstance(cfg, dict) else None
 
     def _update_config(self, info: dict | None) -> None:
         if info is None:
@@ -298,10 +326,8 @@ class RunFolderState:
         dirs = [self.folder / str(r.get("dir", "")) for r in listing if isinstance(r, dict)]
         status = []
         for d in dirs:
-            try:
-                status.append(json.loads((d / "run.json").read_text()).get("status"))
-            except (OSError, ValueError, AttributeError):
-                status.append(None)
+            info = read_json(d / "run.json")
+            status.append(info.get("status") if isinstance(info, dict) else None)
         begun = [i for i, st in enumerate(status) if st is not None]
         running = [i for i, st in enumerate(status) if st == "running"]
         pick = running[0] if running else (begun[-1] if begun else 0)
@@ -383,8 +409,10 @@ class RunFolderState:
         """``{scenario: uninformative_detectors}`` of a finished run's metrics.json ({} when it
         has none)."""
         try:
-            scen = json.loads((self.folder / "metrics.json").read_text())["scenarios"]
-        except (OSError, ValueError, KeyError, TypeError):
+            scen = read_json(self.folder / "metrics.json")["scenarios"]
+        except (KeyError, TypeError):
+            return {}
+        if not isinstance(scen, dict):
             return {}
         return {k: v["uninformative_detectors"] for k, v in scen.items()
                 if isinstance(v, dict) and "uninformative_detectors" in v}

@@ -1,26 +1,44 @@
 // Shared helpers of the live view and the config editor (no dependencies, no network).
 "use strict";
 
+// the session token: in the URL the command printed (?token=...); every /api/ call sends it
+const TOKEN = new URLSearchParams(window.location.search).get("token") || "";
+
+// a page of this server with the token, for links and redirects
+function withToken(path) {
+  return path + (path.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(TOKEN);
+}
+
+class HTTPError extends Error {
+  constructor(url, status) { super(url + ": HTTP " + status); this.status = status; }
+}
+
 async function getJSON(url) {
-  const r = await fetch(url, {cache: "no-store"});
-  if (!r.ok) throw new Error(url + ": HTTP " + r.status);
+  const r = await fetch(url, {cache: "no-store", headers: {"X-Veriloc-Token": TOKEN}});
+  if (!r.ok) throw new HTTPError(url, r.status);
   return r.json();
 }
 
 async function postJSON(url, body) {
   const r = await fetch(url, {
     method: "POST", cache: "no-store",
-    headers: {"Content-Type": "application/json", "X-Veriloc": "1"},
+    headers: {"Content-Type": "application/json", "X-Veriloc": "1", "X-Veriloc-Token": TOKEN},
     body: JSON.stringify(body),
   });
   return r.json();
 }
+
+// links between the pages keep the token
+document.addEventListener("DOMContentLoaded", () => {
+  for (const a of document.querySelectorAll("a[data-page]")) a.href = withToken(a.dataset.page);
+});
 
 function el(tag, attrs, ...children) {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(attrs || {})) {
     if (k === "class") e.className = v;
     else if (k === "text") e.textContent = v;
+    else if (k === "style") e.style.cssText = v;   // CSSOM: allowed by the page's CSP
     else e.setAttribute(k, v);
   }
   for (const c of children) if (c !== null && c !== undefined) e.append(c);

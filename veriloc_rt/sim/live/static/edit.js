@@ -1,6 +1,7 @@
 // The config editor: one input per leaf field of the schema (/api/form), values from
 // /api/config; Validate / Save / Save and run post the whole config to the server, which
-// answers with the package's own one-line error.
+// answers with the package's own one-line error. The config file and the run's folder are the
+// ones the editor was started on (shown, not editable: the server refuses any other).
 "use strict";
 
 let fields = [];
@@ -99,11 +100,12 @@ function show(res, okText) {
 }
 
 function body() {
-  return {config: configFromForm(), path: document.getElementById("save-path").value,
-          out: document.getElementById("out-dir").value};
+  return {config: configFromForm(), path: document.getElementById("save-path").value || null,
+          out: document.getElementById("out-dir").value || null};
 }
 
 async function build() {
+  document.getElementById("form").addEventListener("submit", e => e.preventDefault());
   const form = await getJSON("/api/form");
   fields = form.fields;
   const root = document.getElementById("form");
@@ -128,6 +130,10 @@ async function build() {
     for (const f of fields) setValue(f, get(cur.config, f.path));
     document.getElementById("save-path").value = cur.path;
     document.getElementById("out-dir").value = cur.out;
+    if (!cur.editable) {   // veriloc-rt view: the checks only
+      for (const id of ["save", "run"]) document.getElementById(id).disabled = true;
+      show({ok: true}, "this server only views a run folder: `veriloc-rt edit CONFIG --out DIR` saves and runs");
+    }
   }
   document.getElementById("validate").addEventListener("click", async () =>
     show(await postJSON("/api/validate", body()), "valid"));
@@ -138,7 +144,7 @@ async function build() {
   document.getElementById("run").addEventListener("click", async () => {
     const r = await postJSON("/api/run", body());
     show(r, "started the run into " + r.out);
-    if (r.ok) window.location.href = r.view;
+    if (r.ok) window.location.href = withToken(r.view);
   });
   document.getElementById("reset").addEventListener("click", () => {
     for (const f of fields) setValue(f, f.default);

@@ -47,7 +47,9 @@ async function poll() {
     render(st);
   } catch (e) {
     const s = document.getElementById("status");
-    s.textContent = "view server not reachable"; s.className = "badge stopped";
+    s.textContent = e.status === 403 ? "no access: open the URL (with its ?token=) the command printed"
+                                     : "view server not reachable";
+    s.className = "badge stopped";
   }
   setTimeout(poll, POLL_MS);
 }
