@@ -13,6 +13,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
+import errno
 import gc
 import json
 import logging
@@ -581,26 +582,70 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl-C is (:func:`_on_sigterm`): the run stops the
+    same way, keeping what it finished, and exits with 128 + 15."""
+
+
+#: exit code of a run stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal's number, as a
+#: shell reports a process a signal ended
+EXIT_SIGINT, EXIT_SIGTERM = 128 + 2, 128 + 15
+
+
+def _on_sigterm(main_pid: int):
+    """The SIGTERM handler: raise :class:`Terminated` in this process; a process forked from it
+    (a chain worker, a ray-tracing worker) that still has the handler ends at once, silently,
+    as SIGTERM's default action would have ended it."""
+    import signal
+
+    def handler(signum, frame):
+        if os.getpid() != main_pid:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        raise Terminated
+    return handler
+
+
+def _install_sigterm() -> None:
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_sigterm(os.getpid()))
+
+
 def _main(args) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    if getattr(args, "whole_process", False):
+        _install_sigterm()
     try:
         return args.func(args)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("\ninterrupted; finished ray-tracing batches are kept in the cache, finished "
               "points and chain results in --out: add --resume to continue", file=sys.stderr)
-        return 130
+        return EXIT_SIGTERM if isinstance(exc, Terminated) else EXIT_SIGINT
     except Exception as exc:  # noqa: BLE001 - one line for the user, details with -vv
         from .backend import BackendError
+        from .fileio import DISK_FULL
 
         if isinstance(exc, BackendError):
             print(f"error: {exc}", file=sys.stderr)
             return 1
         if args.verbose >= 2:
             raise
+        if isinstance(exc, OSError) and exc.filename is not None:
+            problem = ("no space left on device" if exc.errno == errno.ENOSPC
+                       else "disk quota exceeded" if exc.errno == errno.EDQUOT
+                       else (exc.strerror or str(exc)).lower())
+            hint = ("; finished points are kept in --out: free space, then add --resume"
+                    if exc.errno in DISK_FULL and args.func is cmd_run else "")
+            print(f"error: {InputError(exc.filename, problem + hint)}", file=sys.stderr)
+            return 1
         print(f"error: {type(exc).__name__}: {exc} (run with -vv for the traceback)",
               file=sys.stderr)
         return 1

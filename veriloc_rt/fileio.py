@@ -8,6 +8,7 @@ never a truncated target.
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 import shutil
@@ -15,10 +16,28 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "TMP_MARK"]
+__all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "naming",
+           "TMP_MARK", "DISK_FULL"]
 
 #: part of every temporary file's name (so that a folder scan can skip them)
 TMP_MARK = ".tmp-"
+
+
+#: errno values of a write that found no room: the file system is full, the user's quota used up
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+@contextmanager
+def naming(path: str | Path) -> Iterator[None]:
+    """Re-raise an :class:`OSError` of the block that names no file (``write(2)`` and
+    ``flush`` name none), or names a temporary file of :func:`atomic_output`, as the same
+    error naming ``path``: a full disk then says which file it could not write."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno is not None and (exc.filename is None or TMP_MARK in str(exc.filename)):
+            raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from exc
+        raise
 
 
 @contextmanager
@@ -26,16 +45,19 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on a clean exit rename it over ``path``.
 
     The temporary name keeps ``path``'s suffix (matplotlib and NumPy choose the format by it).
-    On an exception the temporary file is removed and ``path`` is left as it was.
+    On an exception the temporary file is removed and ``path`` is left as it was; an
+    :class:`OSError` of the block that names no file names ``path`` (:func:`naming`).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # created like any new file (mode 0o666 less the umask; mkstemp's would be 0o600)
     tmp = path.parent / f".{path.name}{TMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{path.suffix}"
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    with naming(path):
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
-        yield tmp
-        os.replace(tmp, path)
+        with naming(path):
+            yield tmp
+            os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -174,7 +174,7 @@ def test_resume_after_a_stop_during_propagation(tmp_path, monkeypatch, uninterru
     monkeypatch.setattr(engine, "compute_propagation", stopped)
     with pytest.raises(Stop):
         run(cfg, out)
-    assert json.loads((out / "run.json").read_text())["status"] == "running"
+    assert json.loads((out / "run.json").read_text())["status"] == "stopped"
     monkeypatch.undo()
     run(cfg, out, resume=True)
     assert_same_results(cfg, out, full)
@@ -318,7 +318,7 @@ def test_ctrl_c_during_ray_tracing_then_resume_reuses_the_traced_calls(tmp_path)
     _, err = p.communicate(timeout=300)
     assert p.returncode == 130, err
     assert "add --resume" in err
-    assert json.loads((out / "run.json").read_text())["status"] == "running"
+    assert json.loads((out / "run.json").read_text())["status"] == "stopped"
     traced_before = len(list(entries.glob("*.npz")))
     r = subprocess.run(base + ["--out", str(out), "--resume"], cwd=tmp_path, env=env,
                        capture_output=True, text=True)

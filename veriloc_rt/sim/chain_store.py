@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config import Config, config_to_dict
+from ..fileio import naming
 
 log = logging.getLogger(__name__)
 
@@ -191,14 +192,15 @@ class ChainStore:
         self.digest = digest
         self.loaded: list[dict] = []
         end = self._read() if resume else 0
-        if end:
-            self._fh = open(self.path, "r+b")
-            self._fh.truncate(end)       # drop a torn or damaged tail
-            self._fh.seek(end)
-        else:
-            self._fh = open(self.path, "wb")
-            self._fh.write(MAGIC + digest)
-            self._fh.flush()
+        with naming(self.path):
+            if end:
+                self._fh = open(self.path, "r+b")
+                self._fh.truncate(end)       # drop a torn or damaged tail
+                self._fh.seek(end)
+            else:
+                self._fh = open(self.path, "wb")
+                self._fh.write(MAGIC + digest)
+                self._fh.flush()
 
     def _read(self) -> int:
         """Fill :attr:`loaded`; the offset after the last good record (0: nothing usable)."""
@@ -236,11 +238,18 @@ class ChainStore:
         if not results:
             return
         payload = encode(results)
-        self._fh.write(_HEAD.pack(len(payload)) + hashlib.sha256(payload).digest() + payload)
-        self._fh.flush()
+        with naming(self.path):   # a full disk: the torn record is dropped when resumed
+            self._fh.write(_HEAD.pack(len(payload)) + hashlib.sha256(payload).digest() + payload)
+            self._fh.flush()
 
     def close(self) -> None:
-        self._fh.close()
+        """Close the file; what a failed write left unflushed is dropped (a torn record is
+        dropped when the store is read)."""
+        try:
+            self._fh.close()
+        except OSError:
+            if not self._fh.closed:
+                raise
 
     def __enter__(self):
         return self
