@@ -486,8 +486,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--resume", action="store_true",
                    help="keep the points already in --out (same config) and continue after them")
     r.add_argument("--force", action="store_true",
-                   help="write into a non-empty --out that holds no run of this config "
-                   "(replacing the run files there)")
+                   help="write into a non-empty --out: replace a finished run there (or "
+                   "the points of an unfinished one), or write beside other files")
     r.add_argument("--live", action="store_true", help="serve the live view of --out on "
                    "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
     _browser_flags(r, "--live: port (default 8765, or a free one)",

@@ -251,7 +251,7 @@ def dask_failure(exc: BaseException, flag: str = "--scheduler") -> InputError | 
 
     text = " ".join(str(exc).split()) or type(exc).__name__
     kept = "finished points and realisations are kept in --out: add --resume to continue"
-    where = ("the scheduler at --scheduler" if flag == "--scheduler"
+    where = ("the cluster" if flag == "--scheduler"
              else "the local Dask cluster")
     if isinstance(exc, TimeoutError) and "No valid workers" in text:
         return InputError(flag, f"{where} has no workers (Dask: {text}): start some, e.g. "
@@ -366,17 +366,27 @@ WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": N
 
 @contextmanager
 def local_cluster(workers: int):
-    """A client of a fresh local cluster: ``workers`` processes with one thread each, no
-    dashboard (:data:`WORKER_CONFIG`); closed on exit."""
+    """A client of a fresh local cluster on 127.0.0.1: ``workers`` processes with one thread
+    each, no dashboard (:data:`WORKER_CONFIG`); closed on exit."""
     import dask
     from distributed import Client, LocalCluster
 
-    # the scheduler serves HTTP even without a dashboard, by default on port 8787, with a
-    # warning when that is taken (another cluster): a free port on localhost instead
+    # loopback only (a scheduler runs any code a client sends it). The scheduler serves HTTP
+    # even without a dashboard, by default on port 8787, with a warning when that is taken
+    # (another cluster): a free port on localhost instead. The workers log errors only: a run
+    # stopped (Ctrl-C, SIGTERM) cancels their tasks, and each would print a warning about it
+    # after the run's own message
     with dask.config.set(WORKER_CONFIG):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None,
+                               host="127.0.0.1", dashboard_address=None,
+                               silence_logs=logging.ERROR,
                                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
     with cluster, Client(cluster, set_as_default=False) as client:
-        yield client
+        try:
+            yield client
+        except BaseException:
+            # closing the cluster while its tasks run: the nanny's warnings that it killed
+            # them say nothing the run's own message does not
+            logging.getLogger("distributed").setLevel(logging.ERROR)
+            raise
 
