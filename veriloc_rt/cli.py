@@ -134,8 +134,12 @@ def _run(cfg, out: Path, args) -> int:
         logging.getLogger("distributed").setLevel(logging.WARNING)
     if cfg.run.realisations > 1:
         return _run_montecarlo(cfg, out, args, workers)
-    res = run(cfg, out, progress=ProgressBar(), resume=args.resume, workers=workers,
-              scheduler=args.scheduler, force=args.force)
+    bar = ProgressBar()
+    try:
+        res = run(cfg, out, progress=bar, resume=args.resume, workers=workers,
+                  scheduler=args.scheduler, force=args.force)
+    finally:
+        bar.close()     # a stopped or failed run's message then starts a line of its own
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
@@ -173,8 +177,12 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
              else "one after the other")
     print(f"Monte Carlo: {n} realisations of {cfg.trajectory.num_points} points, {where}",
           flush=True)
-    res = run_montecarlo(cfg, out, progress=ProgressBar(), workers=workers,
-                         scheduler=args.scheduler, resume=args.resume, force=args.force)
+    bar = ProgressBar()
+    try:
+        res = run_montecarlo(cfg, out, progress=bar, workers=workers,
+                             scheduler=args.scheduler, resume=args.resume, force=args.force)
+    finally:
+        bar.close()
     print(format_montecarlo(res.metrics))
     t = res.timing_s
     print(f"time: {t['total']:.1f} s wall, {t['realisations_total']:.1f} s summed over the "

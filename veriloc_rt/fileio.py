@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Iterator
 
 __all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "naming",
-           "TMP_MARK", "DISK_FULL"]
+           "exchange_folders", "TMP_MARK", "DISK_FULL"]
 
 #: part of every temporary file's name (so that a folder scan can skip them)
 TMP_MARK = ".tmp-"
@@ -87,6 +87,40 @@ def atomic_files(folder: str | Path) -> Iterator[Path]:
             os.replace(src, dst)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+#: renameat2(2) flag: swap the two paths atomically (linux/fs.h)
+RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def exchange_folders(a: str | Path, b: str | Path) -> None:
+    """Swap the folders ``a`` and ``b`` (of one file system) in one step
+    (``renameat2(RENAME_EXCHANGE)``, Linux 3.15+): whoever looks at ``b`` sees its old content
+    or its new one, never a mix or nothing. Where the file system or C library lacks it, two
+    renames with ``b`` missing in between (put back if the second fails)."""
+    a, b = Path(a), Path(b)
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        fn = None
+    if fn is not None:
+        if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), RENAME_EXCHANGE) == 0:
+            return
+        err = ctypes.get_errno()
+        if err not in (errno.ENOSYS, errno.EINVAL):
+            raise OSError(err, os.strerror(err), str(b))
+    aside = b.with_name(f".{b.name}{TMP_MARK}old-{os.getpid()}-{secrets.token_hex(4)}")
+    os.rename(b, aside)
+    try:
+        os.rename(a, b)
+    except OSError:
+        os.rename(aside, b)
+        raise
+    os.rename(aside, a)
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

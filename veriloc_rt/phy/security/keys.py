@@ -37,7 +37,7 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import ed25519
 
 from ...errors import InputError, short_repr
-from ...fileio import TMP_MARK
+from ...fileio import TMP_MARK, exchange_folders
 from ...inputs import check_path, decode_text, read_bytes
 
 log = logging.getLogger(__name__)
@@ -94,38 +94,6 @@ def _key_line(kind: str, bs_id: int, key: bytes) -> str:
 
 #: the names of key files (:func:`key_paths`)
 _KEY_NAME = re.compile(r"bs[0-9]+\.(prs\.aes|tag\.hmac|tag\.ed25519\.pem|tag\.ed25519\.pub)")
-#: renameat2(2) flag: swap the two paths atomically (linux/fs.h)
-RENAME_EXCHANGE = 2
-_AT_FDCWD = -100
-
-
-def _exchange(a: Path, b: Path) -> None:
-    """Swap the folders ``a`` and ``b`` in one step (``renameat2(RENAME_EXCHANGE)``, Linux
-    3.15+); where the file system or C library lacks it, two renames with ``b`` missing in
-    between (put back if the second fails)."""
-    import ctypes
-
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        fn = libc.renameat2
-    except (OSError, AttributeError):
-        fn = None
-    if fn is not None:
-        if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), RENAME_EXCHANGE) == 0:
-            return
-        err = ctypes.get_errno()
-        if err not in (errno.ENOSYS, errno.EINVAL):
-            raise OSError(err, os.strerror(err), str(b))
-    aside = b.with_name(f".{b.name}{TMP_MARK}old-{os.getpid()}-{secrets.token_hex(4)}")
-    os.rename(b, aside)
-    try:
-        os.rename(a, b)
-    except OSError:
-        os.rename(aside, b)
-        raise
-    os.rename(aside, a)
-
-
 def _link_or_copy(src: str, dst: str) -> None:
     """``dst`` the same file as ``src`` (a hard link), or a copy where links are refused."""
     try:
@@ -157,7 +125,7 @@ def generate_keys(out_dir: str | Path, bs_ids: Iterable[int], *, aes_bits: int =
       placed removed again if one fails;
     * ``overwrite`` and ``out_dir`` holding some of them: the temporary folder gets the files
       of ``out_dir`` the set does not replace (hard links), then the two folders are swapped
-      at once (:func:`_exchange`) and the old one removed. ``out_dir`` must then hold key files
+      at once (:func:`~veriloc_rt.fileio.exchange_folders`) and the old one removed. ``out_dir`` must then hold key files
       only (the swap replaces the folder as a whole).
 
     A failure before that step removes the temporary folder and leaves ``out_dir`` as it was:
@@ -220,7 +188,7 @@ def generate_keys(out_dir: str | Path, bs_ids: Iterable[int], *, aes_bits: int =
             for n in existing:
                 if n not in names:
                     _link_or_copy(str(out / n), str(stage / n))
-            _exchange(stage, out)
+            exchange_folders(stage, out)
     except OSError as exc:
         for path in placed:
             path.unlink(missing_ok=True)
