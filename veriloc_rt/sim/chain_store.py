@@ -28,6 +28,7 @@ import importlib
 import json
 import logging
 import math
+import os
 import struct
 from pathlib import Path
 
@@ -35,6 +36,7 @@ import numpy as np
 
 from ..config import Config, config_to_dict
 from ..fileio import naming
+from ..inputs import read_bytes
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +47,8 @@ __all__ = ["ChainStore", "encode", "decode", "config_digest"]
 MAGIC = b"VLCHAIN2"
 _HEAD = struct.Struct(">Q")
 _DIGEST = 32
+#: largest store read back, bytes
+MAX_STORE_BYTES = 1 << 40
 #: the package whose dataclasses a payload may name
 _PACKAGE = "veriloc_rt."
 
@@ -204,10 +208,10 @@ class ChainStore:
 
     def _read(self) -> int:
         """Fill :attr:`loaded`; the offset after the last good record (0: nothing usable)."""
-        try:
-            data = self.path.read_bytes()
-        except FileNotFoundError:
+        if not os.path.lexists(self.path):
             return 0
+        # non-blocking: a FIFO in its place is an error, not a wait for a writer
+        data = read_bytes(self.path, str(self.path), "chain store", MAX_STORE_BYTES)
         head = len(MAGIC) + _DIGEST
         if data[:len(MAGIC)] != MAGIC or data[len(MAGIC):head] != self.digest:
             if data:

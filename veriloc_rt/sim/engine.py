@@ -33,6 +33,7 @@ import numpy as np
 from ..config import Config
 from ..errors import InputError
 from ..fileio import atomic_write_text
+from ..inputs import read_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import uma_propagation
 from ..report import plots
@@ -40,7 +41,6 @@ from ..report.detection import analyse_detection
 from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
 from ..report.paper import PAPER_RATES
 from ..report.propagation_summary import summarize
-from ..inputs import read_text
 from ..report.results import ResultsWriter, parse_rows, results_path, scenario_metrics
 from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry

@@ -32,7 +32,8 @@ from .runner import ScenarioRunner
 log = logging.getLogger(__name__)
 
 __all__ = ["LocalChains", "ForkPool", "DaskChains", "check_workers", "scheduler_client",
-           "connect", "probe_scheduler", "local_cluster", "dask_failure", "CONNECT_TIMEOUT_S"]
+           "connect", "probe_scheduler", "local_cluster", "dask_failure", "named_failures",
+           "CONNECT_TIMEOUT_S"]
 
 
 def check_workers(workers, scheduler) -> None:

@@ -37,15 +37,14 @@ import numpy as np
 
 from ..config import Config
 from ..detectors.outcomes import DETECTORS, OUTCOMES
+from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text
+from ..inputs import parse_json, read_text
 from ..report import plots
 from ..rng import stream
 from .engine import Progress, run
 from .blas import one_blas_thread
-from .executors import check_workers, local_cluster, scheduler_client
-from ..errors import InputError
-from ..inputs import parse_json, read_text
-from .executors import dask_failure
+from .executors import check_workers, local_cluster, named_failures, scheduler_client
 from .run_folder import (MAX_RUN_JSON_BYTES, check_fresh, check_resume, check_run_files,
                          clear_run_files, locked, mark_stopped, read_run_json, same_config,
                          write_run_json)
@@ -272,17 +271,12 @@ def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None,
     if progress:
         progress("realisations", 0, len(reals))
     try:
-        try:
+        with named_failures(flag):
             for done, f in enumerate(as_completed(futures, loop=client.loop), 1):
                 metrics[index[f.key]] = f.result()
                 log.info("realisation %d done (%d of %d)", index[f.key] + 1, done, len(reals))
                 if progress:
                     progress("realisations", done, len(reals))
-        except Exception as exc:  # noqa: BLE001 - the cluster's failures named, others raised
-            failure = dask_failure(exc, flag)
-            if failure is None:
-                raise
-            raise failure from None
     except BaseException:
         try:
             client.cancel(futures)

@@ -214,8 +214,9 @@ def _check_mode(path: Path, secret: bool) -> None:
     except OSError:
         return
     if st.st_mode & stat.S_IWOTH:
-        raise InputError(str(path), f"key file is world-writable (mode {stat.S_IMODE(st.st_mode):04o}): "
-                         f"anyone on this machine could replace the key; `chmod 600 {path}`")
+        raise InputError(str(path), f"key file is world-writable (mode "
+                         f"{stat.S_IMODE(st.st_mode):04o}): anyone on this machine could "
+                         f"replace the key; `chmod 600 {path}`")
     if folder.st_mode & stat.S_IWOTH and not folder.st_mode & stat.S_ISVTX:
         raise InputError(str(path), f"its folder is world-writable (mode "
                          f"{stat.S_IMODE(folder.st_mode):04o}): anyone on this machine could "
