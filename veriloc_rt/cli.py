@@ -1,6 +1,7 @@
 """The ``veriloc-rt`` command. Thin: parsing, progress and printing; the work is in the library.
 
-Exit codes: 0 success, 2 bad input (one line ``error: <field>: <problem>``), 1 anything else.
+Exit codes: 0 success, 2 bad input (one line ``error: <field>: <problem>``), 1 anything else,
+130 a run stopped by Ctrl-C, 143 one stopped by SIGTERM (resumable alike).
 """
 
 from __future__ import annotations

@@ -212,9 +212,11 @@ def check_fresh(out: Path, cfg: Config, force: bool = False) -> None:
     if not out.is_dir():
         raise InputError(f"--out {out}", "not a folder")
     check_run_files(out)
-    if force or not any(not _ignored(p.name) for p in out.iterdir()):
-        return
+    held = [p.name for p in out.iterdir() if not _ignored(p.name)]
     info = out / "run.json"
+    # a run stopped while it built its scene (before run.json exists) leaves scene/ alone
+    if force or not held or (held == ["scene"] and not os.path.lexists(info)):
+        return
     if not os.path.lexists(info):
         raise InputError(f"--out {out}", "not empty and holds no veriloc-rt run: use an empty "
                          "or new folder, or --force to write into it anyway")

@@ -61,3 +61,16 @@ def test_which_folders_a_new_run_may_write_into(tmp_path):
     with pytest.raises(InputError, match="holds a run of another config"):
         check_fresh(same, cfg.replace(seed=cfg.seed + 1))
     assert json.loads((same / "run.json").read_text())["status"] == "complete"
+
+
+def test_a_run_stopped_while_building_its_scene_is_started_again(tmp_path):
+    """A run stopped before run.json exists leaves scene/ only: --resume has nothing to resume
+    (it says to run without it), so the run without it must be let in."""
+    cfg = Config()
+    out = tmp_path / "o"
+    (out / "scene" / "meshes").mkdir(parents=True)
+    (out / "scene" / "scene.xml").write_text("<scene/>")
+    check_fresh(out, cfg)
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match="holds no veriloc-rt run"):
+        check_fresh(out, cfg)
