@@ -92,28 +92,29 @@ _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
           (stat.S_ISSOCK, "a socket"))
 
 
-def _file_kind(path: Path) -> str | None:
+def _not_regular(path: Path) -> str | None:
     """None when ``path`` is missing (a dangling symbolic link included) or a regular file
-    (followed through symbolic links); else what it is, for a message."""
+    (followed through symbolic links); else what is wrong with it, for a message."""
     try:
         st = os.stat(path)
     except FileNotFoundError:
         return None
     except OSError as exc:
         if exc.errno == errno.ELOOP:
-            return "a symbolic link loop"
-        return f"unreadable ({exc.strerror})"
+            return "is a symbolic link loop, not a regular file"
+        return f"cannot be checked ({exc.strerror})"
     if stat.S_ISREG(st.st_mode):
         return None
-    return next((name for test, name in _KINDS if test(st.st_mode)), "not a regular file")
+    kind = next((name for test, name in _KINDS if test(st.st_mode)), "a special file")
+    return f"is {kind}, not a regular file"
 
 
 def _check_regular(out: Path, names, role: str) -> None:
     for name in names:
-        kind = _file_kind(out / name)
-        if kind is not None:
-            raise InputError(str(out / name), f"is {kind}, not a regular file ({role}): remove "
-                             "it, or use another --out")
+        problem = _not_regular(out / name)
+        if problem is not None:
+            raise InputError(str(out / name), f"{problem} ({role}): remove it, or use another "
+                             "--out")
 
 
 def check_run_files(out: Path) -> None:

@@ -95,11 +95,20 @@ def _key_line(kind: str, bs_id: int, key: bytes) -> str:
 #: the names of key files (:func:`key_paths`)
 _KEY_NAME = re.compile(r"bs[0-9]+\.(prs\.aes|tag\.hmac|tag\.ed25519\.pem|tag\.ed25519\.pub)")
 def _link_or_copy(src: str, dst: str) -> None:
-    """``dst`` the same file as ``src`` (a hard link), or a copy where links are refused."""
+    """``dst`` the same file as ``src`` (a hard link), or a copy where links are refused; never
+    over an existing ``dst`` (:class:`FileExistsError`)."""
     try:
         os.link(src, dst, follow_symlinks=False)
+    except FileExistsError:
+        raise
     except OSError:
-        shutil.copy2(src, dst, follow_symlinks=False)
+        if os.path.islink(src):
+            os.symlink(os.readlink(src), dst)
+            return
+        fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                     stat.S_IMODE(os.stat(src).st_mode))
+        with os.fdopen(fd, "wb") as fh, open(src, "rb") as source:
+            shutil.copyfileobj(source, fh)
 
 
 def _write_new(path: Path, data: bytes) -> None:
@@ -125,8 +134,8 @@ def generate_keys(out_dir: str | Path, bs_ids: Iterable[int], *, aes_bits: int =
       placed removed again if one fails;
     * ``overwrite`` and ``out_dir`` holding some of them: the temporary folder gets the files
       of ``out_dir`` the set does not replace (hard links), then the two folders are swapped
-      at once (:func:`~veriloc_rt.fileio.exchange_folders`) and the old one removed. ``out_dir`` must then hold key files
-      only (the swap replaces the folder as a whole).
+      at once (:func:`~veriloc_rt.fileio.exchange_folders`) and the old one removed.
+      ``out_dir`` must then hold key files only (the swap replaces the folder as a whole).
 
     A failure before that step removes the temporary folder and leaves ``out_dir`` as it was:
     its old keys complete.
