@@ -445,3 +445,40 @@ def test_a_scheduler_without_workers_is_one_line_and_the_run_resumable(tmp_path,
                         "found): start some, e.g. `dask worker tcp://127.0.0.1:8786`, then run "
                         "again\n")
     assert json.loads((out / "run.json").read_text())["status"] == "stopped"
+
+
+def test_sigterm_stops_a_monte_carlo_on_a_local_cluster_quietly_and_resumably(tmp_path):
+    """The Dask workers of a local cluster: SIGTERM to the command prints its one message, no
+    traceback and no warning of the cluster's shutdown; --resume then gives the uninterrupted
+    Monte Carlo's montecarlo.csv byte for byte."""
+    data = {**LONGER, "run": {**LONGER["run"], "realisations": 2}}
+    cfg = tmp_path / "mc.json"
+    cfg.write_text(json.dumps(data))
+    full = tmp_path / "full"
+    r = veriloc("run", cfg, "--out", full, "--workers", "2", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "o"
+    p = start("run", cfg, "--out", out, "--workers", "2", cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + RUN_S
+        while sum(rows(f) for f in out.glob("realisation_*/none_results.csv")) < 3:
+            assert p.poll() is None, p.communicate()[1]
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=QUICK_S)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    assert p.returncode == 128 + signal.SIGTERM, err
+    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()
+             and not ln.startswith(("Monte Carlo", "realisations"))]
+    assert lines == [MESSAGE]
+    assert json.loads((out / "run.json").read_text())["status"] == "stopped"
+    assert not (out / OWNER_FILE).exists()
+    r = veriloc("run", cfg, "--out", out, "--workers", "2", "--resume", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (out / "montecarlo.csv").read_bytes() == (full / "montecarlo.csv").read_bytes()
+    for k in range(2):
+        same_csvs(out / f"realisation_{k:03d}", full / f"realisation_{k:03d}", LONGER)
