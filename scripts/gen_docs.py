@@ -425,7 +425,8 @@ def outputs_md() -> str:
            "| `metrics.json` | per scenario: outcome shares, correct-decision rates, error "
            "percentiles; timing and memory (keys below) |",
            "| `run.json` | the resolved config (every default filled in), `seed`, `status` "
-           "(`running` until the end, then `complete`), `versions` (veriloc-rt, Sionna RT, "
+           "(`running` until the end, then `complete`; `stopped` when it ends unfinished: "
+           "Ctrl-C, SIGTERM, an error), `versions` (veriloc-rt, Sionna RT, "
            "Mitsuba, Dr.Jit, NumPy, ...), `timing_s`, `scene_xml`. `--resume` compares its "
            "config with the new one |",
            "| `propagation_summary.json` | the scene (buildings or triangles, BSs, points, the "
@@ -452,7 +453,9 @@ def outputs_md() -> str:
            "`none` computes included), so a resumed run computes only what no run computed "
            "([resume](running.md#resume-the-lock-and-the-propagation-cache)) |",
            "| `.veriloc-run.lock`, `.veriloc-run.owner` | the folder's lock (held while a run "
-           "writes into it) and the process holding it (removed when it ends) |",
+           "writes into it) and the process holding it, `pid N on HOST` (removed when it "
+           "ends; one killed outright leaves it, and a process of this host that is gone "
+           "counts as stopped) |",
            "", "Every file but the CSVs and `chains.bin` (appended point by point, a torn last "
            "line or record dropped on resume) is written to a temporary file and renamed over "
            "the old one: a stopped run leaves each file either complete or as it was.",

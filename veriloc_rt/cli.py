@@ -1,6 +1,7 @@
 """The ``veriloc-rt`` command. Thin: parsing, progress and printing; the work is in the library.
 
-Exit codes: 0 success, 2 bad input (one line ``error: <field>: <problem>``), 1 anything else.
+Exit codes: 0 success, 2 bad input (one line ``error: <field>: <problem>``), 1 anything else,
+130 a run stopped by Ctrl-C, 143 one stopped by SIGTERM (resumable alike).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse
+import errno
 import gc
 import json
 import logging
@@ -133,8 +135,12 @@ def _run(cfg, out: Path, args) -> int:
         logging.getLogger("distributed").setLevel(logging.WARNING)
     if cfg.run.realisations > 1:
         return _run_montecarlo(cfg, out, args, workers)
-    res = run(cfg, out, progress=ProgressBar(), resume=args.resume, workers=workers,
-              scheduler=args.scheduler, force=args.force)
+    bar = ProgressBar()
+    try:
+        res = run(cfg, out, progress=bar, resume=args.resume, workers=workers,
+                  scheduler=args.scheduler, force=args.force)
+    finally:
+        bar.close()     # a stopped or failed run's message then starts a line of its own
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
@@ -172,8 +178,12 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
              else "one after the other")
     print(f"Monte Carlo: {n} realisations of {cfg.trajectory.num_points} points, {where}",
           flush=True)
-    res = run_montecarlo(cfg, out, progress=ProgressBar(), workers=workers,
-                         scheduler=args.scheduler, resume=args.resume, force=args.force)
+    bar = ProgressBar()
+    try:
+        res = run_montecarlo(cfg, out, progress=bar, workers=workers,
+                             scheduler=args.scheduler, resume=args.resume, force=args.force)
+    finally:
+        bar.close()
     print(format_montecarlo(res.metrics))
     t = res.timing_s
     print(f"time: {t['total']:.1f} s wall, {t['realisations_total']:.1f} s summed over the "
@@ -499,8 +509,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--resume", action="store_true",
                    help="keep the points already in --out (same config) and continue after them")
     r.add_argument("--force", action="store_true",
-                   help="write into a non-empty --out that holds no run of this config "
-                   "(replacing the run files there)")
+                   help="write into a non-empty --out: replace a finished run there (or "
+                   "the points of an unfinished one), or write beside other files")
     r.add_argument("--live", action="store_true", help="serve the live view of --out on "
                    "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
     _browser_flags(r, "--live: port (default 8765, or a free one)",
@@ -595,26 +605,70 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as Ctrl-C is (:func:`_on_sigterm`): the run stops the
+    same way, keeping what it finished, and exits with 128 + 15."""
+
+
+#: exit code of a run stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal's number, as a
+#: shell reports a process a signal ended
+EXIT_SIGINT, EXIT_SIGTERM = 128 + 2, 128 + 15
+
+
+def _on_sigterm(main_pid: int):
+    """The SIGTERM handler: raise :class:`Terminated` in this process; a process forked from it
+    (a chain worker, a ray-tracing worker) that still has the handler ends at once, silently,
+    as SIGTERM's default action would have ended it."""
+    import signal
+
+    def handler(signum, frame):
+        if os.getpid() != main_pid:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+            return
+        raise Terminated
+    return handler
+
+
+def _install_sigterm() -> None:
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_sigterm(os.getpid()))
+
+
 def _main(args) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s")
+    if getattr(args, "whole_process", False):
+        _install_sigterm()
     try:
         return args.func(args)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("\ninterrupted; finished ray-tracing batches are kept in the cache, finished "
               "points and chain results in --out: add --resume to continue", file=sys.stderr)
-        return 130
+        return EXIT_SIGTERM if isinstance(exc, Terminated) else EXIT_SIGINT
     except Exception as exc:  # noqa: BLE001 - one line for the user, details with -vv
         from .backend import BackendError
+        from .fileio import DISK_FULL
 
         if isinstance(exc, BackendError):
             print(f"error: {exc}", file=sys.stderr)
             return 1
         if args.verbose >= 2:
             raise
+        if isinstance(exc, OSError) and exc.filename is not None:
+            problem = ("no space left on device" if exc.errno == errno.ENOSPC
+                       else "disk quota exceeded" if exc.errno == errno.EDQUOT
+                       else (exc.strerror or str(exc)).lower())
+            hint = ("; finished points are kept in --out: free space, then add --resume"
+                    if exc.errno in DISK_FULL and args.func is cmd_run else "")
+            print(f"error: {InputError(exc.filename, problem + hint)}", file=sys.stderr)
+            return 1
         print(f"error: {type(exc).__name__}: {exc} (run with -vv for the traceback)",
               file=sys.stderr)
         return 1

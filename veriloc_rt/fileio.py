@@ -8,6 +8,7 @@ never a truncated target.
 
 from __future__ import annotations
 
+import errno
 import os
 import secrets
 import shutil
@@ -15,10 +16,28 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "TMP_MARK"]
+__all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "naming",
+           "exchange_folders", "TMP_MARK", "DISK_FULL"]
 
 #: part of every temporary file's name (so that a folder scan can skip them)
 TMP_MARK = ".tmp-"
+
+
+#: errno values of a write that found no room: the file system is full, the user's quota used up
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+@contextmanager
+def naming(path: str | Path) -> Iterator[None]:
+    """Re-raise an :class:`OSError` of the block that names no file (``write(2)`` and
+    ``flush`` name none), or names a temporary file of :func:`atomic_output`, as the same
+    error naming ``path``: a full disk then says which file it could not write."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno is not None and (exc.filename is None or TMP_MARK in str(exc.filename)):
+            raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from exc
+        raise
 
 
 @contextmanager
@@ -26,16 +45,19 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on a clean exit rename it over ``path``.
 
     The temporary name keeps ``path``'s suffix (matplotlib and NumPy choose the format by it).
-    On an exception the temporary file is removed and ``path`` is left as it was.
+    On an exception the temporary file is removed and ``path`` is left as it was; an
+    :class:`OSError` of the block that names no file names ``path`` (:func:`naming`).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # created like any new file (mode 0o666 less the umask; mkstemp's would be 0o600)
     tmp = path.parent / f".{path.name}{TMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{path.suffix}"
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+    with naming(path):
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
-        yield tmp
-        os.replace(tmp, path)
+        with naming(path):
+            yield tmp
+            os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -65,6 +87,40 @@ def atomic_files(folder: str | Path) -> Iterator[Path]:
             os.replace(src, dst)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+#: renameat2(2) flag: swap the two paths atomically (linux/fs.h)
+RENAME_EXCHANGE = 2
+_AT_FDCWD = -100
+
+
+def exchange_folders(a: str | Path, b: str | Path) -> None:
+    """Swap the folders ``a`` and ``b`` (of one file system) in one step
+    (``renameat2(RENAME_EXCHANGE)``, Linux 3.15+): whoever looks at ``b`` sees its old content
+    or its new one, never a mix or nothing. Where the file system or C library lacks it, two
+    renames with ``b`` missing in between (put back if the second fails)."""
+    a, b = Path(a), Path(b)
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        fn = None
+    if fn is not None:
+        if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), RENAME_EXCHANGE) == 0:
+            return
+        err = ctypes.get_errno()
+        if err not in (errno.ENOSYS, errno.EINVAL):
+            raise OSError(err, os.strerror(err), str(b))
+    aside = b.with_name(f".{b.name}{TMP_MARK}old-{os.getpid()}-{secrets.token_hex(4)}")
+    os.rename(b, aside)
+    try:
+        os.rename(a, b)
+    except OSError:
+        os.rename(aside, b)
+        raise
+    os.rename(aside, a)
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

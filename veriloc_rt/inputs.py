@@ -18,6 +18,7 @@ with code 2. The checks happen before anything is read or computed:
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
 import math
@@ -190,7 +191,13 @@ def check_out_dir(path: Any, field: str) -> Path:
     probe = p
     while not probe.exists() and probe.parent != probe:
         if probe.is_symlink():
-            raise InputError(field, f"{str(probe)!r} is a dangling symbolic link")
+            try:
+                os.stat(probe)
+                what = "a dangling symbolic link"
+            except OSError as exc:
+                what = ("a symbolic link loop" if exc.errno == errno.ELOOP
+                        else "a dangling symbolic link")
+            raise InputError(field, f"{str(probe)!r} is {what}")
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
         what = "exists and is not a folder" if probe == p else f"has {str(probe)!r}, not a folder"

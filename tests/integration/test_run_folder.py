@@ -174,7 +174,7 @@ def test_resume_after_a_stop_during_propagation(tmp_path, monkeypatch, uninterru
     monkeypatch.setattr(engine, "compute_propagation", stopped)
     with pytest.raises(Stop):
         run(cfg, out)
-    assert json.loads((out / "run.json").read_text())["status"] == "running"
+    assert json.loads((out / "run.json").read_text())["status"] == "stopped"
     monkeypatch.undo()
     run(cfg, out, resume=True)
     assert_same_results(cfg, out, full)
@@ -250,6 +250,13 @@ def killed_and_resumed(tmp_path, cfg_file, kills, seed: int, workers: int, sig) 
         except subprocess.TimeoutExpired:
             p.send_signal(sig)
             p.wait(timeout=60)
+            # Ctrl-C and SIGTERM (issue 37) stop it alike: 128 + the signal, 'stopped' (0: it
+            # had just finished; -sig: it was still importing, before the handlers exist)
+            if sig != signal.SIGKILL and p.returncode not in (0, -sig):
+                assert p.returncode == 128 + sig
+                assert not (out / OWNER_FILE).exists()
+                if (out / "run.json").exists():
+                    assert json.loads((out / "run.json").read_text())["status"] == "stopped"
         r = subprocess.run(base + ["--out", str(out), "--resume"], cwd=tmp_path, env=env,
                            capture_output=True, text=True)
         if r.returncode == 2 and "nothing to resume" in r.stderr:
@@ -270,8 +277,9 @@ def test_killed_runs_resume_to_the_same_bytes_fast(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("sig, workers", [(signal.SIGKILL, 2), (signal.SIGINT, 2)],
-                         ids=["SIGKILL", "SIGINT"])
+@pytest.mark.parametrize("sig, workers", [(signal.SIGKILL, 2), (signal.SIGINT, 2),
+                                          (signal.SIGTERM, 2)],
+                         ids=["SIGKILL", "SIGINT", "SIGTERM"])
 def test_killed_runs_resume_to_the_same_bytes(tmp_path, sig, workers):
     cfg = tmp_path / "c.json"
     cfg.write_text(json.dumps(dict(UMA, trajectory={"num_points": 12},
@@ -318,7 +326,7 @@ def test_ctrl_c_during_ray_tracing_then_resume_reuses_the_traced_calls(tmp_path)
     _, err = p.communicate(timeout=300)
     assert p.returncode == 130, err
     assert "add --resume" in err
-    assert json.loads((out / "run.json").read_text())["status"] == "running"
+    assert json.loads((out / "run.json").read_text())["status"] == "stopped"
     traced_before = len(list(entries.glob("*.npz")))
     r = subprocess.run(base + ["--out", str(out), "--resume"], cwd=tmp_path, env=env,
                        capture_output=True, text=True)

@@ -70,3 +70,36 @@ def test_atomic_files_failure_leaves_the_folder_as_it_was(tmp_path):
             raise RuntimeError("killed mid-write")
     assert (tmp_path / "meshes" / "a.ply").read_bytes() == b"old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["meshes"]
+
+
+def test_a_full_disk_names_the_target_not_the_temporary(tmp_path):
+    """Issue 37: 'OSError: [Errno 28] ...' named no file (write(2) names none)."""
+    import errno
+
+    from veriloc_rt.fileio import naming
+
+    target = tmp_path / "metrics.json"
+    target.write_text("old")
+    with pytest.raises(OSError) as err:
+        with atomic_output(target) as tmp:
+            tmp.write_text("half")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    assert (err.value.errno, err.value.filename) == (errno.ENOSPC, str(target))
+    assert target.read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["metrics.json"]
+    # an error that names its own file keeps it
+    with pytest.raises(FileNotFoundError) as err, naming(target):
+        open(tmp_path / "missing")
+    assert err.value.filename == str(tmp_path / "missing")
+
+
+def test_exchange_folders_swaps_two_folders(tmp_path):
+    from veriloc_rt.fileio import exchange_folders
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    (a / "new").write_text("1")
+    (b / "old").write_text("2")
+    exchange_folders(a, b)
+    assert [p.name for p in a.iterdir()] == ["old"] and [p.name for p in b.iterdir()] == ["new"]

@@ -56,3 +56,19 @@ def test_messages_stay_short_and_on_one_line():
     assert len(msg) < 200
     assert "digits" in str(bad_value("x", 10**5000, "z"))
     assert "\n" not in str(InputError("a\nb", "c\r\nd"))
+
+
+def test_check_out_dir_names_a_symbolic_link_loop_and_a_dangling_link(tmp_path):
+    """Issue 37: a loop given as --out was called 'dangling'."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.symlink_to(b)
+    b.symlink_to(a)
+    for out in (a, a / "sub"):
+        with pytest.raises(InputError) as err:
+            check_out_dir(out, "--out")
+        assert str(err.value) == f"--out: '{a}' is a symbolic link loop"
+    gone = tmp_path / "gone"
+    gone.symlink_to(tmp_path / "nowhere" / "x")
+    with pytest.raises(InputError) as err:
+        check_out_dir(gone, "--out")
+    assert str(err.value) == f"--out: '{gone}' is a dangling symbolic link"

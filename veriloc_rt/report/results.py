@@ -30,11 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..fileio import atomic_output
+from ..fileio import atomic_output, naming
 from ..detectors.outcomes import DETECTORS, OUTCOMES, PointRow
 from ..detectors.statistics import STAT_COLUMNS
+from ..errors import short_repr
 
-__all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "scenario_metrics", "results_path"]
+__all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "parse_rows", "scenario_metrics",
+           "results_path"]
 
 CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
                "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc",
@@ -84,13 +86,33 @@ def read_rows(path: str | Path) -> list[PointRow]:
 
     :raises ValueError: if the header is not :data:`CSV_COLUMNS`
     """
-    text = Path(path).read_text()
+    return parse_rows(Path(path).read_text(), path)
+
+
+def parse_rows(text: str, path: str | Path = "results CSV") -> list[PointRow]:
+    """The complete rows of a results CSV's ``text`` (:func:`read_rows`).
+
+    :raises ValueError: ``header ... is not ...`` or ``line N: ...`` (a row that does not parse)
+    """
     if not text.endswith("\n"):  # torn last line
         text = text[: text.rfind("\n") + 1]
-    reader = csv.DictReader(io.StringIO(text))
-    if tuple(reader.fieldnames or ()) != CSV_COLUMNS:
-        raise ValueError(f"{path}: header {reader.fieldnames} is not {list(CSV_COLUMNS)}")
-    return [fields_to_row(f) for f in reader]
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    try:
+        if tuple(reader.fieldnames or ()) != CSV_COLUMNS:
+            raise ValueError(f"header {short_repr(reader.fieldnames)} is not the results "
+                             "CSV's")
+        rows = []
+        for f in reader:
+            if None in f or None in f.values():
+                raise ValueError(f"line {reader.line_num}: {len(f) - (None in f)} fields "
+                                 f"(of {len(CSV_COLUMNS)})")
+            try:
+                rows.append(fields_to_row(f))
+            except (ValueError, KeyError) as exc:
+                raise ValueError(f"line {reader.line_num}: {exc}") from None
+    except csv.Error as exc:
+        raise ValueError(f"not a readable CSV file ({exc})") from None
+    return rows
 
 
 class ResultsWriter:
@@ -108,15 +130,25 @@ class ResultsWriter:
             w.writerow(CSV_COLUMNS)
             for r in keep or ():
                 w.writerow(row_to_fields(r))
-        self._fh = open(self.path, "a", newline="")
+        with naming(self.path):
+            self._fh = open(self.path, "a", newline="")
         self._w = csv.writer(self._fh, lineterminator="\n")
 
     def write(self, row: PointRow) -> None:
-        self._w.writerow(row_to_fields(row))
-        self._fh.flush()
+        """Append ``row`` (flushed). A failed write (a full disk) leaves the file's complete
+        lines as they were and raises :class:`OSError` naming the file."""
+        with naming(self.path):
+            self._w.writerow(row_to_fields(row))
+            self._fh.flush()
 
     def close(self) -> None:
-        self._fh.close()
+        """Close the file; what a failed write left unflushed is dropped (a torn line would be
+        dropped by :func:`read_rows` anyway)."""
+        try:
+            self._fh.close()
+        except OSError:
+            if not self._fh.closed:
+                raise
 
     def __enter__(self):
         return self

@@ -28,12 +28,15 @@ import importlib
 import json
 import logging
 import math
+import os
 import struct
 from pathlib import Path
 
 import numpy as np
 
 from ..config import Config, config_to_dict
+from ..fileio import naming
+from ..inputs import read_bytes
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +47,8 @@ __all__ = ["ChainStore", "encode", "decode", "config_digest"]
 MAGIC = b"VLCHAIN2"
 _HEAD = struct.Struct(">Q")
 _DIGEST = 32
+#: largest store read back, bytes
+MAX_STORE_BYTES = 1 << 40
 #: the package whose dataclasses a payload may name
 _PACKAGE = "veriloc_rt."
 
@@ -191,21 +196,22 @@ class ChainStore:
         self.digest = digest
         self.loaded: list[dict] = []
         end = self._read() if resume else 0
-        if end:
-            self._fh = open(self.path, "r+b")
-            self._fh.truncate(end)       # drop a torn or damaged tail
-            self._fh.seek(end)
-        else:
-            self._fh = open(self.path, "wb")
-            self._fh.write(MAGIC + digest)
-            self._fh.flush()
+        with naming(self.path):
+            if end:
+                self._fh = open(self.path, "r+b")
+                self._fh.truncate(end)       # drop a torn or damaged tail
+                self._fh.seek(end)
+            else:
+                self._fh = open(self.path, "wb")
+                self._fh.write(MAGIC + digest)
+                self._fh.flush()
 
     def _read(self) -> int:
         """Fill :attr:`loaded`; the offset after the last good record (0: nothing usable)."""
-        try:
-            data = self.path.read_bytes()
-        except FileNotFoundError:
+        if not os.path.lexists(self.path):
             return 0
+        # non-blocking: a FIFO in its place is an error, not a wait for a writer
+        data = read_bytes(self.path, str(self.path), "chain store", MAX_STORE_BYTES)
         head = len(MAGIC) + _DIGEST
         if data[:len(MAGIC)] != MAGIC or data[len(MAGIC):head] != self.digest:
             if data:
@@ -236,11 +242,18 @@ class ChainStore:
         if not results:
             return
         payload = encode(results)
-        self._fh.write(_HEAD.pack(len(payload)) + hashlib.sha256(payload).digest() + payload)
-        self._fh.flush()
+        with naming(self.path):   # a full disk: the torn record is dropped when resumed
+            self._fh.write(_HEAD.pack(len(payload)) + hashlib.sha256(payload).digest() + payload)
+            self._fh.flush()
 
     def close(self) -> None:
-        self._fh.close()
+        """Close the file; what a failed write left unflushed is dropped (a torn record is
+        dropped when the store is read)."""
+        try:
+            self._fh.close()
+        except OSError:
+            if not self._fh.closed:
+                raise
 
     def __enter__(self):
         return self

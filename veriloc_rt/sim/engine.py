@@ -33,6 +33,7 @@ import numpy as np
 from ..config import Config
 from ..errors import InputError
 from ..fileio import atomic_write_text
+from ..inputs import read_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import uma_propagation
 from ..report import plots
@@ -40,14 +41,14 @@ from ..report.detection import analyse_detection
 from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
 from ..report.paper import PAPER_RATES
 from ..report.propagation_summary import summarize
-from ..report.results import ResultsWriter, read_rows, results_path, scenario_metrics
+from ..report.results import ResultsWriter, parse_rows, results_path, scenario_metrics
 from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
 from .checks import check_run_inputs, warn_silent_bs, warn_unreachable
 from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
 from .chain_store import ChainStore, config_digest
-from .run_folder import (CHAIN_FILE, check_fresh, check_resume, clear_run_files, locked, run_keys,
-                         write_run_json)
+from .run_folder import (CHAIN_FILE, MAX_RESULTS_BYTES, check_fresh, check_resume,
+                         clear_run_files, locked, mark_stopped, run_keys, write_run_json)
 from .runner import ScenarioRunner
 
 log = logging.getLogger(__name__)
@@ -124,8 +125,11 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
 
     The run holds ``out_dir``'s lock while it works (another run there is refused). A new run
-    needs an empty ``out_dir`` or one holding a run of the same config (replaced), unless
-    ``force``; nothing in it changes before the inputs are checked and the geometry is built.
+    needs an empty ``out_dir`` or one holding an unfinished run of the same config with no
+    finished point (started over), unless ``force``: finished results are never replaced
+    without it (:func:`~veriloc_rt.sim.run_folder.check_fresh`); nothing in it changes before
+    the inputs are checked and the geometry is built. A run that ends unfinished (an
+    exception, Ctrl-C, SIGTERM) records the status ``stopped`` in ``run.json``.
 
     :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
     :param resume: keep the rows and chain results already in ``out_dir`` and continue after
@@ -139,7 +143,9 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     :param cache_dir: the ray tracer's cache folder: "default" is the config's
         ``propagation.raytrace.cache_dir`` (a relative one under this process's working
         directory), None none
-    :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``
+    :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``,
+        ``<file>: ...`` (a file of the folder that is not a regular one, a damaged ``run.json``
+        or results CSV on resume)
     """
     check_workers(workers, scheduler)
     # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
@@ -158,7 +164,12 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
                 check_resume(out, cfg)
             else:
                 check_fresh(out, cfg, force)
-        return _run(cfg, out, progress, resume, workers, client, cache_dir)
+        try:
+            return _run(cfg, out, progress, resume, workers, client, cache_dir)
+        except BaseException:   # Ctrl-C, SIGTERM, a full disk, an error: resumable
+            if out is not None:
+                mark_stopped(out)
+            raise
 
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
@@ -236,7 +247,13 @@ def _saved_rows(out: Path, scenario: str, n: int) -> list:
     path = results_path(out, scenario)
     if not path.exists():
         return []
-    done = read_rows(path)[:n]
+    text = read_text(path, str(path), "results file", MAX_RESULTS_BYTES)
+    try:
+        done = parse_rows(text, path)[:n]
+    except ValueError as exc:
+        raise InputError(str(path), f"not a results CSV of this run ({exc}): delete it to "
+                         "compute its points again with --resume, or use --force or a new "
+                         "--out") from None
     if [r.index for r in done] != list(range(len(done))):
         raise InputError("--resume", f"{path} is not a prefix of this run's points; use a new "
                          "--out")

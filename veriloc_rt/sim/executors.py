@@ -12,6 +12,7 @@ whatever the executor. Also the Dask plumbing a Monte Carlo run uses: :func:`con
 
 from __future__ import annotations
 
+import errno
 import logging
 import multiprocessing as mp
 import os
@@ -31,7 +32,8 @@ from .runner import ScenarioRunner
 log = logging.getLogger(__name__)
 
 __all__ = ["LocalChains", "ForkPool", "DaskChains", "check_workers", "scheduler_client",
-           "connect", "probe_scheduler", "local_cluster", "CONNECT_TIMEOUT_S"]
+           "connect", "probe_scheduler", "local_cluster", "dask_failure", "named_failures",
+           "CONNECT_TIMEOUT_S"]
 
 
 def check_workers(workers, scheduler) -> None:
@@ -113,8 +115,11 @@ def _init_worker(parent: int) -> None:
     and they end with the parent. A killed parent (SIGKILL) cannot terminate them, and a pool
     worker whose parent is gone waits for tasks for ever, holding what it inherited: the run
     folder's lock among them, which would refuse the ``--resume`` that follows. On Linux the
-    kernel kills them then (``prctl(PR_SET_PDEATHSIG)``, prctl(2))."""
+    kernel kills them then (``prctl(PR_SET_PDEATHSIG)``, prctl(2)). SIGTERM (the pool's own
+    ``terminate``, or a ``kill`` of the process group) ends them at once, silently: the
+    parent's handler, which the fork copied, would raise in them and print a traceback."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if sys.platform.startswith("linux"):
         import ctypes
 
@@ -174,10 +179,12 @@ class DaskChains:
     def __init__(self, runner: ScenarioRunner, client, chunk: int | None = None):
         self.client, self.chunk = client, chunk
         self.token = f"veriloc-chains-{uuid.uuid4().hex}"
-        self.threads = max(1, sum(client.nthreads().values()))
-        [self.spec] = client.scatter([(runner.cfg, runner.geo, runner.prop)], broadcast=True,
-                                     hash=False)
+        self.spec = None
         self.inflight: set = set()
+        with named_failures():
+            self.threads = max(1, sum(client.nthreads().values()))
+            [self.spec] = client.scatter([(runner.cfg, runner.geo, runner.prop)],
+                                         broadcast=True, hash=False)
         log.info("Dask: %d worker threads at %s", self.threads, client.scheduler.address)
 
     def imap(self, scenario: str, points: list[int]):
@@ -194,26 +201,85 @@ class DaskChains:
                 self.inflight.add(f)
                 nxt += 1
             f = pending.popleft()
-            out = f.result()
+            with named_failures():
+                out = f.result()
             self.inflight.discard(f)
             yield from out
 
     def close(self) -> None:
-        """Release the run's data on the cluster (the client stays connected)."""
-        for f in self.inflight:
-            f.cancel()
+        """Release the run's data on the cluster (the client stays connected). Quiet when the
+        cluster is gone (the run's own error says so)."""
+        try:
+            for f in self.inflight:
+                f.cancel()
+        except Exception as exc:  # noqa: BLE001 - a scheduler gone cancels nothing
+            log.debug("Dask: could not cancel the chunks in flight (%s)", exc)
         self.inflight.clear()
         if self.spec is None:  # closed already
             return
-        self.spec.release()
+        try:
+            self.spec.release()
+        except Exception as exc:  # noqa: BLE001
+            log.debug("Dask: could not release the run's data (%s)", exc)
         self.spec = None
         try:
             self.client.run(_dask_forget, self.token)
         except Exception as exc:  # noqa: BLE001 - a worker gone by now has nothing to forget
-            log.warning("Dask: could not clear the workers' runners (%s)", exc)
+            log.info("Dask: could not clear the workers' runners (%s)", exc)
 
     terminate = close
 
+
+
+#: errno values of a lost connection (the scheduler ended or restarted)
+_CONNECTION_LOST = (errno.ECONNREFUSED, errno.ECONNRESET, errno.ECONNABORTED, errno.EPIPE,
+                    errno.EHOSTUNREACH, errno.ENETUNREACH, errno.ETIMEDOUT)
+
+
+def dask_failure(exc: BaseException, flag: str = "--scheduler") -> InputError | None:
+    """The one-line error (``<flag>: <problem and hint>``) of a failure of the Dask cluster
+    itself: no workers, the run's tasks cancelled (the scheduler restarted or went away), a
+    task that killed its workers, a lost connection. None for any other exception (one the
+    task itself raised: it is raised as it is).
+
+    :param flag: the option that chose the cluster (``--scheduler``; ``--workers`` for the
+        local cluster of a Monte Carlo run)
+    """
+    from concurrent.futures import CancelledError
+
+    from distributed.comm.core import CommClosedError
+    from distributed.scheduler import KilledWorker
+
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    kept = "finished points and realisations are kept in --out: add --resume to continue"
+    where = ("the cluster" if flag == "--scheduler"
+             else "the local Dask cluster")
+    if isinstance(exc, TimeoutError) and "No valid workers" in text:
+        return InputError(flag, f"{where} has no workers (Dask: {text}): start some, e.g. "
+                          "`dask worker tcp://127.0.0.1:8786`, then run again")
+    if isinstance(exc, CancelledError):
+        return InputError(flag, f"{where} cancelled the run's tasks (Dask: {text}): the "
+                          f"scheduler restarted or went away; {kept} once it is back")
+    if isinstance(exc, KilledWorker):
+        return InputError(flag, f"a task ended the workers that ran it (Dask: {text}): out of "
+                          f"memory? see the workers' logs; {kept}")
+    if isinstance(exc, CommClosedError) or (
+            isinstance(exc, OSError) and exc.filename is None and exc.errno in _CONNECTION_LOST):
+        return InputError(flag, f"lost the connection to {where} (Dask: {text}); {kept} once "
+                          "it is back")
+    return None
+
+
+@contextmanager
+def named_failures(flag: str = "--scheduler"):
+    """Raise a Dask cluster's failures in the block as :func:`dask_failure`'s one line."""
+    try:
+        yield
+    except Exception as exc:  # noqa: BLE001 - the cluster's failures named, others raised
+        failure = dask_failure(exc, flag)
+        if failure is None:
+            raise
+        raise failure from None
 
 
 #: seconds to wait for a ``--scheduler`` before giving up
@@ -241,7 +307,9 @@ def connect(address: str, timeout_s: float | None = None):
     # MemoryError: a peer that is no Dask scheduler answered bytes read as a frame length
     except (OSError, TimeoutError, ValueError, TypeError, MemoryError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError("--scheduler", f"cannot connect to {address} ({reason})") from None
+        raise InputError("--scheduler", f"cannot connect to {address} ({reason}): is a Dask "
+                         "scheduler running there? start one with `dask scheduler --host "
+                         "127.0.0.1`") from None
 
 
 #: largest first message accepted from a scheduler, bytes: its handshake (a small dict of
@@ -299,17 +367,27 @@ WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": N
 
 @contextmanager
 def local_cluster(workers: int):
-    """A client of a fresh local cluster: ``workers`` processes with one thread each, no
-    dashboard (:data:`WORKER_CONFIG`); closed on exit."""
+    """A client of a fresh local cluster on 127.0.0.1: ``workers`` processes with one thread
+    each, no dashboard (:data:`WORKER_CONFIG`); closed on exit."""
     import dask
     from distributed import Client, LocalCluster
 
-    # the scheduler serves HTTP even without a dashboard, by default on port 8787, with a
-    # warning when that is taken (another cluster): a free port on localhost instead
+    # loopback only (a scheduler runs any code a client sends it). The scheduler serves HTTP
+    # even without a dashboard, by default on port 8787, with a warning when that is taken
+    # (another cluster): a free port on localhost instead. The workers log errors only: a run
+    # stopped (Ctrl-C, SIGTERM) cancels their tasks, and each would print a warning about it
+    # after the run's own message
     with dask.config.set(WORKER_CONFIG):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None,
+                               host="127.0.0.1", dashboard_address=None,
+                               silence_logs=logging.ERROR,
                                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
     with cluster, Client(cluster, set_as_default=False) as client:
-        yield client
+        try:
+            yield client
+        except BaseException:
+            # closing the cluster while its tasks run: the nanny's warnings that it killed
+            # them say nothing the run's own message does not
+            logging.getLogger("distributed").setLevel(logging.ERROR)
+            raise
 

@@ -37,13 +37,16 @@ import numpy as np
 
 from ..config import Config
 from ..detectors.outcomes import DETECTORS, OUTCOMES
+from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text
+from ..inputs import parse_json, read_text
 from ..report import plots
 from ..rng import stream
 from .engine import Progress, run
 from .blas import one_blas_thread
-from .executors import check_workers, local_cluster, scheduler_client
-from .run_folder import (check_fresh, check_resume, clear_run_files, locked, same_config,
+from .executors import check_workers, local_cluster, named_failures, scheduler_client
+from .run_folder import (MAX_RUN_JSON_BYTES, check_fresh, check_resume, check_run_files,
+                         clear_run_files, locked, mark_stopped, read_run_json, same_config,
                          write_run_json)
 
 log = logging.getLogger(__name__)
@@ -139,10 +142,17 @@ def _realisation(cfg: Config, out_dir: str, resume: bool, progress: Progress | N
     out = Path(out_dir)
     info = out / "run.json"
     if resume and info.exists():
-        if (json.loads(info.read_text()).get("status") == "complete" and same_config(info, cfg)
+        check_run_files(out)    # a FIFO would block the reads
+        if (read_run_json(info).get("status") == "complete" and same_config(info, cfg)
                 and (out / "metrics.json").exists()):
             log.info("%s: complete, kept", out)
-            return json.loads((out / "metrics.json").read_text())
+            path = out / "metrics.json"
+            metrics = parse_json(read_text(path, str(path), "metrics file", MAX_RUN_JSON_BYTES),
+                                 str(path))
+            if not isinstance(metrics, dict) or not isinstance(metrics.get("scenarios"), dict):
+                raise InputError(str(path), "not a run's metrics.json: delete it to compute the "
+                                 "realisation again with --resume")
+            return metrics
         return run(cfg, out, progress=progress, resume=True, cache_dir=cache_dir).metrics
     return run(cfg, out, progress=progress, force=force, cache_dir=cache_dir).metrics
 
@@ -191,11 +201,16 @@ def run_montecarlo(cfg: Config, out_dir: str | Path, progress: Progress | None =
             check_resume(out, cfg)
         else:
             check_fresh(out, cfg, force)
-        return _montecarlo(cfg, out, progress, workers, client, resume, force)
+        try:
+            return _montecarlo(cfg, out, progress, workers, client, resume, force,
+                               "--scheduler" if scheduler is not None else "--workers")
+        except BaseException:   # Ctrl-C, SIGTERM, a full disk, an error: resumable
+            mark_stopped(out)
+            raise
 
 
 def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int, client,
-                resume: bool, force: bool) -> MonteCarloResults:
+                resume: bool, force: bool, flag: str = "--scheduler") -> MonteCarloResults:
     n = cfg.run.realisations
     width = max(3, len(str(n - 1)))
     reals = [{"index": r, "config": realisation_config(cfg, r),
@@ -205,10 +220,10 @@ def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int,
         clear_run_files(out)
     write_run_json(out, cfg, "running", {}, _listing(reals), versions=MC_VERSIONS)
     if client is not None:
-        metrics = _on_dask(client, reals, resume, progress, force)
+        metrics = _on_dask(client, reals, resume, progress, force, flag)
     elif workers > 1:
         with local_cluster(min(workers, n)) as own:
-            metrics = _on_dask(own, reals, resume, progress, force)
+            metrics = _on_dask(own, reals, resume, progress, force, flag)
     else:
         metrics = []
         for real in reals:
@@ -237,8 +252,12 @@ def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int,
 
 
 def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None,
-             force: bool = False) -> list[dict]:
-    """Every realisation as one task on ``client``'s cluster -> metrics, in realisation order."""
+             force: bool = False, flag: str = "--scheduler") -> list[dict]:
+    """Every realisation as one task on ``client``'s cluster -> metrics, in realisation order.
+
+    :raises InputError: ``<flag>: ...`` when the cluster fails (no workers, the scheduler
+        gone, tasks cancelled; :func:`~veriloc_rt.sim.executors.dask_failure`)
+    """
     from distributed import as_completed
 
     tag = uuid.uuid4().hex[:8]
@@ -252,13 +271,17 @@ def _on_dask(client, reals: list[dict], resume: bool, progress: Progress | None,
     if progress:
         progress("realisations", 0, len(reals))
     try:
-        for done, f in enumerate(as_completed(futures, loop=client.loop), 1):
-            metrics[index[f.key]] = f.result()
-            log.info("realisation %d done (%d of %d)", index[f.key] + 1, done, len(reals))
-            if progress:
-                progress("realisations", done, len(reals))
+        with named_failures(flag):
+            for done, f in enumerate(as_completed(futures, loop=client.loop), 1):
+                metrics[index[f.key]] = f.result()
+                log.info("realisation %d done (%d of %d)", index[f.key] + 1, done, len(reals))
+                if progress:
+                    progress("realisations", done, len(reals))
     except BaseException:
-        client.cancel(futures)
+        try:
+            client.cancel(futures)
+        except Exception as exc:  # noqa: BLE001 - a scheduler gone cancels nothing
+            log.debug("Dask: cancelling the realisations failed (%s)", exc)
         raise
     return metrics
 

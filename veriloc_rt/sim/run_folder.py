@@ -4,18 +4,25 @@ before a run writes into it, resume checks, keys.
 A run (:mod:`~veriloc_rt.sim.engine`) and a Monte Carlo run (:mod:`~veriloc_rt.sim.montecarlo`)
 hold the folder's lock (:func:`locked`) for as long as they write into it, and check it first:
 a resumed run with :func:`check_resume` (the results on disk must come from the same resolved
-config), a new one with :func:`check_fresh` (the folder is empty or holds a run of the same
-config, unless ``force``). Both write the same ``run.json`` through :func:`write_run_json`.
+config), a new one with :func:`check_fresh` (the folder is empty or holds an unfinished run of
+the same config with no finished point, unless ``force``: finished results are never replaced
+without it). Both first refuse files that are not regular ones where the run reads or writes
+(:func:`check_run_files`: a FIFO would block it for ever). Both write the same ``run.json``
+through :func:`write_run_json`; a run that ends unfinished records ``stopped``
+(:func:`mark_stopped`), and one killed outright leaves ``running`` and its owner file, whose
+process :func:`run_is_alive` finds gone.
 Every file is written atomically (:mod:`veriloc_rt.fileio`), so a run that fails or is killed
 leaves each file either as it was or complete.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
 import platform
+import stat
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
@@ -23,16 +30,18 @@ from typing import Iterator
 
 from ..config import Config, config_to_dict
 from ..config.run import SCENARIOS
-from ..errors import InputError
+from ..errors import InputError, short_repr
 from ..fileio import TMP_MARK, atomic_write_text
+from ..inputs import decode_text, read_bytes
 from ..phy.security.keys import load_keys, simulated_keys
 from ..rng import stream
 
 log = logging.getLogger(__name__)
 
 __all__ = ["package_version", "package_versions", "run_keys", "same_config", "check_resume",
-           "check_fresh", "clear_run_files", "locked", "write_run_json", "LOCK_FILE",
-           "OWNER_FILE", "CHAIN_FILE", "RUN_FILES"]
+           "check_fresh", "check_run_files", "clear_run_files", "locked", "write_run_json",
+           "mark_stopped", "read_run_json", "owner_status", "run_is_alive", "finished_points", "LOCK_FILE", "OWNER_FILE",
+           "CHAIN_FILE", "RUN_FILES", "MAX_RUN_JSON_BYTES"]
 
 #: the lock of a run folder (held by the run writing into it; left in place after a run)
 LOCK_FILE = ".veriloc-run.lock"
@@ -72,29 +81,100 @@ def run_keys(cfg: Config, num_bs: int) -> dict:
     return simulated_keys(range(num_bs), stream(cfg.seed, "keys"), aes_bits=cfg.security.aes_key_bits)
 
 
+#: largest ``run.json`` read, bytes (a Monte Carlo's lists every realisation: ~100 bytes each)
+MAX_RUN_JSON_BYTES = 64 << 20
+#: largest results CSV a resumed run reads back, bytes (~400 bytes a point)
+MAX_RESULTS_BYTES = 1 << 40
+
+#: what a file that is not a regular one is, by its ``stat`` type
+_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+          (stat.S_ISSOCK, "a socket"))
+
+
+def _not_regular(path: Path) -> str | None:
+    """None when ``path`` is missing (a dangling symbolic link included) or a regular file
+    (followed through symbolic links); else what is wrong with it, for a message."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            return "is a symbolic link loop, not a regular file"
+        return f"cannot be checked ({exc.strerror})"
+    if stat.S_ISREG(st.st_mode):
+        return None
+    kind = next((name for test, name in _KINDS if test(st.st_mode)), "a special file")
+    return f"is {kind}, not a regular file"
+
+
+def _check_regular(out: Path, names, role: str) -> None:
+    for name in names:
+        problem = _not_regular(out / name)
+        if problem is not None:
+            raise InputError(str(out / name), f"{problem} ({role}): remove it, or use another "
+                             "--out")
+
+
+def check_run_files(out: Path) -> None:
+    """Raise :class:`InputError` (``<file>: ...``) if a file a run reads or writes in ``out``
+    (:data:`RUN_FILES`, the lock and owner files) exists and is not a regular file: reading a
+    FIFO waits for a writer for ever, a device may never end, a folder cannot be replaced.
+    Checked before anything in ``out`` is read, for a new and a resumed run."""
+    _check_regular(out, RUN_FILES, "a run reads and replaces it")
+    _check_regular(out, (LOCK_FILE, OWNER_FILE), "a run's lock")
+    scene = out / "scene"
+    if scene.exists() and not scene.is_dir():
+        raise InputError(str(scene), "is not a folder (a run writes its scene there): remove "
+                         "it, or use another --out")
+
+
+def read_run_json(path: Path) -> dict:
+    """The content of a ``run.json`` (a JSON object with a ``config``).
+
+    :raises InputError: ``<path>: ...`` when it is missing, not a regular file, not UTF-8,
+        not JSON or not a run's
+    """
+    data = read_bytes(path, str(path), "run file", MAX_RUN_JSON_BYTES)
+    text = decode_text(data, str(path), "run file")
+    try:
+        info = json.loads(text)
+    except ValueError as exc:
+        raise InputError(str(path), f"not valid JSON ({exc}): not a veriloc-rt run.json, or "
+                         "a damaged one") from None
+    if not isinstance(info, dict) or not isinstance(info.get("config"), dict):
+        raise InputError(str(path), "holds no run config: not a veriloc-rt run.json")
+    return info
+
+
 def _saved_config(path: Path) -> dict:
-    """The ``config`` of a ``run.json``; raises OSError, ValueError or KeyError."""
-    return json.loads(path.read_text())["config"]
+    """The ``config`` of a ``run.json`` (:func:`read_run_json`)."""
+    return read_run_json(path)["config"]
+
+
+def _same(saved: dict, cfg: Config) -> bool:
+    return saved == json.loads(json.dumps(config_to_dict(cfg)))
 
 
 def same_config(path: Path, cfg: Config) -> bool:
     """Whether the ``run.json`` at ``path`` exists and was written for ``cfg``."""
     try:
-        return _saved_config(path) == json.loads(json.dumps(config_to_dict(cfg)))
-    except (OSError, ValueError, KeyError):
+        return _same(_saved_config(path), cfg)
+    except InputError:
         return False
 
 
 def check_resume(out: Path, cfg: Config) -> None:
-    """Raise :class:`InputError` (``--resume: ...``) unless ``out`` holds a run of ``cfg``."""
+    """Raise :class:`InputError` unless ``out`` holds a run of ``cfg``: ``--resume: ...``
+    (nothing to resume, another config) or ``<file>: ...`` (a damaged ``run.json``, a file
+    that is not a regular one)."""
     info = out / "run.json"
-    if not info.exists():
+    if out.is_dir():
+        check_run_files(out)
+    if not os.path.lexists(info):
         raise InputError("--resume", f"no run.json in {out}: nothing to resume (run without --resume)")
-    try:
-        _saved_config(info)
-    except (ValueError, KeyError):
-        raise InputError("--resume", f"{info} is not a veriloc-rt run.json") from None
-    if not same_config(info, cfg):
+    if not _same(_saved_config(info), cfg):
         raise InputError("--resume", f"the results in {out} were produced by a different config "
                          "(or --points/--seed); resume with the same ones or use a new --out")
 
@@ -104,32 +184,62 @@ def _ignored(name: str) -> bool:
     return name in (LOCK_FILE, OWNER_FILE) or TMP_MARK in name
 
 
+def finished_points(out: Path) -> int:
+    """Points in the results CSVs of ``out`` and of its realisation folders (complete lines
+    after the header; the files are regular ones, :func:`check_run_files`)."""
+    total = 0
+    for path in [*out.glob("*_results.csv"), *out.glob("realisation_*/*_results.csv")]:
+        try:
+            if not path.is_file():
+                continue
+            with open(path, "rb") as fh:
+                lines = sum(chunk.count(b"\n") for chunk in iter(lambda: fh.read(1 << 20), b""))
+            total += max(0, lines - 1)
+        except OSError:
+            continue
+    return total
+
+
 def check_fresh(out: Path, cfg: Config, force: bool = False) -> None:
     """Raise :class:`InputError` (``--out DIR: ...``) unless a new run of ``cfg`` may write into
-    ``out``: it does not exist, is empty, or holds a run of the same config (which the new run
-    replaces; ``--resume`` would continue it instead); anything else only with ``force``.
+    ``out``: it does not exist, is empty, or holds an unfinished run of the same config that
+    finished no point yet (which the new run starts over); anything else only with ``force``:
+    finished results (a complete run, or the points of an unfinished one, which ``--resume``
+    continues) are never replaced without it. Files that are not regular ones
+    (:func:`check_run_files`) are refused even with ``force``.
     """
-    if force or not out.exists():
+    if not out.exists():
         return
     if not out.is_dir():
         raise InputError(f"--out {out}", "not a folder")
-    if not any(not _ignored(p.name) for p in out.iterdir()):
-        return
+    check_run_files(out)
+    held = [p.name for p in out.iterdir() if not _ignored(p.name)]
     info = out / "run.json"
-    if not info.exists():
+    # a run stopped while it built its scene (before run.json exists) leaves scene/ alone
+    if force or not held or (held == ["scene"] and not os.path.lexists(info)):
+        return
+    if not os.path.lexists(info):
         raise InputError(f"--out {out}", "not empty and holds no veriloc-rt run: use an empty "
                          "or new folder, or --force to write into it anyway")
-    if not same_config(info, cfg):
+    try:
+        saved = read_run_json(info)
+    except InputError as exc:
+        raise InputError(exc.field, f"{exc.problem}; use a new --out, or --force to replace "
+                         "the run there") from None
+    if not _same(saved["config"], cfg):
         raise InputError(f"--out {out}", "holds a run of another config (or --points/--seed): "
                          "use a new --out, the same config with --resume to continue it, or "
                          "--force to replace it")
-    try:
-        status = json.loads(info.read_text()).get("status")
-    except (OSError, ValueError):
-        status = None
-    if status != "complete":
-        log.warning("%s holds an unfinished run of this config: starting it over (--resume "
-                    "would keep its finished points)", out)
+    if saved.get("status") == "complete":
+        raise InputError(f"--out {out}", "holds a complete run of this config: its results "
+                         "are kept; use a new --out, or --force to replace them")
+    done = finished_points(out)
+    if done:
+        raise InputError(f"--out {out}", f"holds an unfinished run of this config with {done} "
+                         "finished points: add --resume to continue it, or --force to start "
+                         "it over")
+    log.info("%s holds an unfinished run of this config with no finished point: starting it "
+             "over", out)
 
 
 def clear_run_files(out: Path) -> None:
@@ -140,11 +250,80 @@ def clear_run_files(out: Path) -> None:
         (out / name).unlink(missing_ok=True)
 
 
-def _owner(out: Path) -> str:
+def _pid_ended(pid: int) -> bool:
+    """Whether process ``pid`` of this host has ended (gone, or a zombie not yet reaped)."""
+    if pid <= 0:
+        return False
     try:
-        return (out / OWNER_FILE).read_text().strip() or "unknown"
-    except (OSError, UnicodeDecodeError):
-        return "unknown"
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:      # EPERM: it exists, another user's
+        return False
+    try:   # the state is the field after the command's closing parenthesis (proc(5))
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            return fh.read().rpartition(b")")[2].split()[0] in (b"Z", b"X")
+    except (OSError, IndexError):
+        return False
+
+
+def owner_status(out: Path) -> tuple[str, bool | None]:
+    """Who holds the run folder ``out``, from its owner file: (description, alive), alive
+    True/False for a process of this host, None when unknown (another host, no or an
+    unreadable owner file)."""
+    path = out / OWNER_FILE
+    if not os.path.lexists(path):
+        return f"no {OWNER_FILE} names it", None
+    try:
+        text = decode_text(read_bytes(path, str(path), "owner file", 4096), str(path),
+                           "owner file").strip()
+    except InputError as exc:
+        return f"its {OWNER_FILE} cannot be read: {exc.problem}", None
+    parts = text.split()
+    if len(parts) == 4 and parts[0] == "pid" and parts[1].isdigit() and parts[2] == "on":
+        pid, host = int(parts[1]), parts[3]
+        if host == platform.node():
+            if _pid_ended(pid):
+                return f"pid {pid} on {host}, which has ended", False
+            return f"pid {pid} on {host}", True
+        return f"pid {pid} on {host}", None
+    return f"its {OWNER_FILE} says {short_repr(text)}", None
+
+
+def run_is_alive(out: Path) -> bool:
+    """Whether a run holds ``out`` now: its owner file exists and does not name a process of
+    this host that has ended (a run killed with SIGKILL leaves its owner file behind)."""
+    if not os.path.lexists(out / OWNER_FILE):
+        return False
+    return owner_status(out)[1] is not False
+
+
+def mark_stopped(out: Path) -> None:
+    """Set the status of ``out/run.json`` from ``running`` to ``stopped`` (a run that ended
+    unfinished: ``--resume`` continues it). Best effort: a run that stops because the disk is
+    full cannot write it, and its status stays ``running``; the live view then reads the
+    owner file (:func:`run_is_alive`)."""
+    path = out / "run.json"
+    if not os.path.lexists(path):    # stopped before it began: nothing to record
+        return
+    try:
+        info = read_run_json(path)
+        if info.get("status") == "running":
+            info["status"] = "stopped"
+            atomic_write_text(path, json.dumps(info, indent=2))
+    except (InputError, OSError) as exc:   # the run's own error is the message
+        log.info("%s: could not record the status 'stopped' (%s)", path, exc)
+
+
+def _lock_holder(out: Path) -> str:
+    """The ``(...)`` of the "locked by another run" message: what the owner file says."""
+    text, alive = owner_status(out)
+    hint = f"`fuser {out / LOCK_FILE}` lists the processes holding it"
+    if alive is False:
+        return f"{text}; a process it started still holds the lock: {hint}"
+    if text.startswith("no ") or text.startswith("its "):
+        return f"{text}; {hint}"
+    return text
 
 
 @contextmanager
@@ -152,7 +331,8 @@ def locked(out: Path) -> Iterator[Path]:
     """Hold the lock of the run folder ``out`` (created if missing) while the block runs.
 
     :raises InputError: ``--out DIR: locked by another run (pid N on HOST)`` when another run
-        holds it, or ``--out DIR: ...`` when the folder cannot be created or written
+        holds it (what its owner file says), ``--out DIR: ...`` when the folder cannot be
+        created or written, ``<file>: ...`` when the lock or owner file is not a regular file
     """
     from filelock import FileLock, Timeout
 
@@ -162,11 +342,12 @@ def locked(out: Path) -> Iterator[Path]:
         raise InputError(f"--out {out}", "not a folder") from None
     except OSError as exc:
         raise InputError(f"--out {out}", f"cannot create it ({exc.strerror or exc})") from None
+    _check_regular(out, (LOCK_FILE, OWNER_FILE), "a run's lock")
     lock = FileLock(out / LOCK_FILE, timeout=0)
     try:
         lock.acquire()
     except Timeout:
-        raise InputError(f"--out {out}", f"locked by another run ({_owner(out)})") from None
+        raise InputError(f"--out {out}", f"locked by another run ({_lock_holder(out)})") from None
     except OSError as exc:
         raise InputError(f"--out {out}", f"cannot write into it ({exc.strerror or exc})") from None
     try:
@@ -181,7 +362,7 @@ def write_run_json(out: Path, cfg: Config, status: str, timing: dict, fields: di
                    versions: tuple[str, ...] = ()) -> None:
     """Write ``out/run.json`` atomically (a temporary file renamed over it).
 
-    :param status: ``running`` or ``complete``
+    :param status: ``running``, ``stopped`` (:func:`mark_stopped`) or ``complete``
     :param fields: further top-level entries (the scene XML, the realisations)
     :param versions: distributions recorded besides :data:`VERSIONED`
     """

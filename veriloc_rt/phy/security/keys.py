@@ -10,16 +10,23 @@ One set of files per BS ``<id>`` in a keys directory::
 
 The label in front of a symmetric key names its kind and its BS, so an AES file swapped with an
 HMAC file of the same length (AES-256), or with another BS's, is refused; a bare hex line (files
-of earlier versions) is still read, without that check. The secret keys are written 0600, all
-files of a set or none (:func:`generate_keys`), and ``repr(BSKeys)`` shows no key material.
+of earlier versions) is still read, without that check. A set is written all files or none, in
+a folder of mode 0700 it creates, each file 0600 (:func:`generate_keys`), and ``repr(BSKeys)``
+shows no key material. Loading refuses a world-writable key file (or folder) and warns about
+secret key material others may read; a byte-order mark in front of a file's text is dropped.
 
 A missing, malformed or wrong-type file raises :class:`~veriloc_rt.errors.InputError` naming it.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
+import re
+import secrets
+import shutil
+import stat
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +37,8 @@ from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import ed25519
 
 from ...errors import InputError, short_repr
-from ...inputs import check_path, read_bytes
+from ...fileio import TMP_MARK, exchange_folders
+from ...inputs import check_path, decode_text, read_bytes
 
 log = logging.getLogger(__name__)
 
@@ -84,25 +92,68 @@ def _key_line(kind: str, bs_id: int, key: bytes) -> str:
     return f"{kind} bs{bs_id} {key.hex()}\n"
 
 
+#: the names of key files (:func:`key_paths`)
+_KEY_NAME = re.compile(r"bs[0-9]+\.(prs\.aes|tag\.hmac|tag\.ed25519\.pem|tag\.ed25519\.pub)")
+def _link_or_copy(src: str, dst: str) -> None:
+    """``dst`` the same file as ``src`` (a hard link), or a copy where links are refused; never
+    over an existing ``dst`` (:class:`FileExistsError`)."""
+    try:
+        os.link(src, dst, follow_symlinks=False)
+    except FileExistsError:
+        raise
+    except OSError:
+        if os.path.islink(src):
+            os.symlink(os.readlink(src), dst)
+            return
+        fd = os.open(dst, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                     stat.S_IMODE(os.stat(src).st_mode))
+        with os.fdopen(fd, "wb") as fh, open(src, "rb") as source:
+            shutil.copyfileobj(source, fh)
+
+
+def _write_new(path: Path, data: bytes) -> None:
+    """Create ``path`` 0600 (never readable by others, not even for a moment) with ``data``,
+    synced to disk."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                 0o600)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
 def generate_keys(out_dir: str | Path, bs_ids: Iterable[int], *, aes_bits: int = 128,
                   rng: np.random.Generator | None = None, overwrite: bool = False) -> list[Path]:
-    """Write a key set for ``bs_ids`` into ``out_dir`` (created if needed), all or none.
+    """Write a key set for ``bs_ids`` into ``out_dir``, all or none.
 
-    Every file is created with its final mode (0600 for the secret keys, 0644 for the public
-    key: never readable by others, not even for a moment) under a temporary name, and the files
-    are renamed into place only after every one of them is written; a failure removes the
-    temporary files and leaves ``out_dir`` as it was.
+    Every file is created 0600 in a temporary folder next to ``out_dir`` (mode 0700) and synced;
+    only then does the set take its place, in one step:
+
+    * ``out_dir`` missing: the temporary folder is renamed to it (so it is created 0700);
+    * ``out_dir`` holding none of the set's files: each file is linked into it, those already
+      placed removed again if one fails;
+    * ``overwrite`` and ``out_dir`` holding some of them: the temporary folder gets the files
+      of ``out_dir`` the set does not replace (hard links), then the two folders are swapped
+      at once (:func:`~veriloc_rt.fileio.exchange_folders`) and the old one removed.
+      ``out_dir`` must then hold key files only (the swap replaces the folder as a whole).
+
+    A failure before that step removes the temporary folder and leaves ``out_dir`` as it was:
+    its old keys complete.
 
     :param rng: None (default) draws from the OS CSPRNG; a Generator makes the set reproducible
     :param overwrite: replace existing files instead of refusing
     :return: the files written
-    :raises InputError: if a key file exists and ``overwrite`` is False (before writing any)
+    :raises InputError: ``<out_dir>: ...`` (not a folder, holds other files with
+        ``overwrite``, cannot be written), ``<file>: key file exists ...`` (before writing any)
     """
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError(str(out), "exists and is not a folder")
+    out = Path(os.path.abspath(out_dir))
+    if os.path.lexists(out) and not out.is_dir():
+        raise InputError(str(out), "is not a folder")
+    if out.parent == out:
+        raise InputError(str(out), "the root folder cannot hold a key set: give a folder of "
+                         "its own")
     sets = [make_keys(int(b), aes_bits=aes_bits, rng=rng) for b in bs_ids]
-    files: list[tuple[Path, bytes, int]] = []
+    files: list[tuple[Path, bytes]] = []
     for keys in sets:
         paths = key_paths(out, keys.bs_id)
         assert keys.sign_key is not None
@@ -118,35 +169,83 @@ def generate_keys(out_dir: str | Path, bs_ids: Iterable[int], *, aes_bits: int =
         for name, text in contents.items():
             if os.path.lexists(paths[name]) and not overwrite:
                 raise InputError(str(paths[name]), "key file exists; refusing to overwrite")
-            files.append((paths[name], text.encode("ascii"), 0o644 if name == "verify" else 0o600))
-    staged: list[tuple[Path, Path]] = []
+            files.append((paths[name], text.encode("ascii")))
+    names = {path.name for path, _ in files}
+    existing = sorted(os.listdir(out)) if out.is_dir() else []
+    replace = any(n in names for n in existing)
+    if replace:
+        others = [n for n in existing if n not in names and not _KEY_NAME.fullmatch(n)]
+        if others:
+            raise InputError(str(out), f"holds {short_repr(others[0])}, not a key file: keys "
+                             "--force replaces the key folder as a whole, so it must hold key "
+                             "files only; move the other files out, or use a new --out")
+    stage = out.with_name(f".{out.name}{TMP_MARK}{os.getpid()}-{secrets.token_hex(4)}")
+    placed: list[Path] = []
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        for path, data, mode in files:
-            tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
-                         mode)
-            staged.append((tmp, path))
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-        for tmp, path in staged:
-            os.replace(tmp, path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        os.mkdir(stage, 0o700)
+        os.chmod(stage, 0o700)      # whatever the umask
+        for path, data in files:
+            _write_new(stage / path.name, data)
+        if not existing and not out.exists():
+            os.rename(stage, out)
+        elif not replace:
+            for path, _ in files:
+                _link_or_copy(str(stage / path.name), str(path))
+                placed.append(path)
+        else:
+            for n in existing:
+                if n not in names:
+                    _link_or_copy(str(out / n), str(stage / n))
+            exchange_folders(stage, out)
     except OSError as exc:
-        for tmp, _ in staged:
-            if os.path.lexists(tmp):
-                tmp.unlink()
-        raise InputError(str(out), f"cannot write key files ({exc.strerror})") from None
-    written = [path for path, _, _ in files]
+        for path in placed:
+            path.unlink(missing_ok=True)
+        shutil.rmtree(stage, ignore_errors=True)
+        raise InputError(str(out), f"cannot write key files ({exc.strerror or exc}); nothing "
+                         "was changed there") from None
+    shutil.rmtree(stage, ignore_errors=True)   # the staging folder, or the old keys
+    written = [path for path, _ in files]
     log.info("wrote %d key files to %s", len(written), out)
     return written
 
 
-def _read(path: Path) -> bytes:
+#: mode bits of a file that others may read or write
+_GROUP_OTHER = stat.S_IRWXG | stat.S_IRWXO
+
+
+def _check_mode(path: Path, secret: bool) -> None:
+    """Refuse key material anyone may replace (world-writable: the file, or its folder without
+    the sticky bit); warn about secret key material others may read."""
+    try:
+        st = os.stat(path)
+        folder = os.stat(path.parent)
+    except OSError:
+        return
+    if st.st_mode & stat.S_IWOTH:
+        raise InputError(str(path), f"key file is world-writable (mode "
+                         f"{stat.S_IMODE(st.st_mode):04o}): anyone on this machine could "
+                         f"replace the key; `chmod 600 {path}`")
+    if folder.st_mode & stat.S_IWOTH and not folder.st_mode & stat.S_ISVTX:
+        raise InputError(str(path), f"its folder is world-writable (mode "
+                         f"{stat.S_IMODE(folder.st_mode):04o}): anyone on this machine could "
+                         f"replace the key; `chmod 700 {path.parent}`")
+    if secret and st.st_mode & _GROUP_OTHER:
+        log.warning("%s: secret key material readable or writable by others (mode %04o): "
+                    "`chmod 600 %s`", path, stat.S_IMODE(st.st_mode), path)
+
+
+def _read(path: Path, secret: bool = True) -> bytes:
     if not os.path.lexists(path):
         raise InputError(str(path), f"missing key file ({_HINT})")
-    return read_bytes(path, str(path), "key file", MAX_KEY_FILE_BYTES)
+    data = read_bytes(path, str(path), "key file", MAX_KEY_FILE_BYTES)
+    _check_mode(path, secret)
+    return data
+
+
+def _text(path: Path, data: bytes) -> str:
+    """A key file's text: UTF-8, a byte-order mark (an editor's) dropped."""
+    return decode_text(data, str(path), "key file")
 
 
 def load_hex_key(path: str | Path, sizes: tuple[int, ...], kinds: tuple[str, ...] = (),
@@ -158,7 +257,7 @@ def load_hex_key(path: str | Path, sizes: tuple[int, ...], kinds: tuple[str, ...
     :param bs_id: the BS the file must be labelled with
     """
     p = Path(path)
-    text = _read(p).decode("ascii", errors="replace")
+    text = _text(p, _read(p))
     tokens = text.split()
     if len(tokens) == 3:
         kind, owner, hex_text = tokens
@@ -188,7 +287,7 @@ def load_hex_key(path: str | Path, sizes: tuple[int, ...], kinds: tuple[str, ...
 def load_private_key(path: str | Path) -> ed25519.Ed25519PrivateKey:
     """An Ed25519 private key from a PKCS#8 PEM file."""
     p = Path(path)
-    data = _read(p)
+    data = _text(p, _read(p)).encode()
     try:
         key = serialization.load_pem_private_key(data, password=None)
     except (ValueError, TypeError, UnsupportedAlgorithm) as exc:
@@ -201,7 +300,7 @@ def load_private_key(path: str | Path) -> ed25519.Ed25519PrivateKey:
 def load_public_key(path: str | Path) -> ed25519.Ed25519PublicKey:
     """An Ed25519 public key from a SubjectPublicKeyInfo PEM file."""
     p = Path(path)
-    data = _read(p)
+    data = _text(p, _read(p, secret=False)).encode()
     try:
         key = serialization.load_pem_public_key(data)
     except (ValueError, TypeError, UnsupportedAlgorithm) as exc:
@@ -221,7 +320,10 @@ def load_keys(keys_dir: str | Path, bs_ids: Iterable[int], *, private: bool = Tr
     """
     d = check_path(keys_dir, "security.keys_dir")
     if not d.is_dir():
-        raise InputError(str(d), f"keys directory does not exist ({_HINT})")
+        problem = ("is a symbolic link loop" if d.is_symlink() and not d.exists()
+                   and _loops(d) else "is not a folder" if d.exists()
+                   else "keys directory does not exist")
+        raise InputError(str(d), f"{problem} ({_HINT})")
     out: dict[int, BSKeys] = {}
     for bs_id in bs_ids:
         paths = key_paths(d, int(bs_id))
@@ -236,6 +338,14 @@ def load_keys(keys_dir: str | Path, bs_ids: Iterable[int], *, private: bool = Tr
             raise InputError(str(paths["verify"]), f"public key does not match {paths['sign'].name}")
         out[int(bs_id)] = BSKeys(int(bs_id), aes, mac, pub, sk)
     return out
+
+
+def _loops(path: Path) -> bool:
+    try:
+        os.stat(path)
+    except OSError as exc:
+        return exc.errno == errno.ELOOP
+    return False
 
 
 def public_view(keys: Mapping[int, BSKeys]) -> dict[int, BSKeys]:

@@ -35,7 +35,7 @@ from ...detectors.outcomes import DETECTORS, OUTCOMES
 from ...errors import InputError
 from ...inputs import read_bytes
 from ...report.results import CSV_COLUMNS, fields_to_row, results_path, scenario_metrics
-from ..run_folder import OWNER_FILE
+from ..run_folder import run_is_alive
 
 log = logging.getLogger(__name__)
 
@@ -361,13 +361,15 @@ class RunFolderState:
 
     def _status(self, info: dict | None) -> tuple[str, str]:
         """(status, stage): status 'waiting' (no run.json yet), 'running', 'stopped' (the run
-        ended unfinished: ``--resume`` continues it), 'complete'; stage 'setup',
+        ended unfinished: ``--resume`` continues it; no run holds the folder, or its owner
+        file names a process of this host that has ended, left by a run killed outright:
+        :func:`~veriloc_rt.sim.run_folder.run_is_alive`), 'complete'; stage 'setup',
         'propagation', 'scenarios' or 'done'."""
         if info is None:
             return "waiting", "setup"
         if info.get("status") == "complete":
             return "complete", "done"
-        status = "running" if (self.folder / OWNER_FILE).exists() else "stopped"
+        status = "running" if run_is_alive(self.folder) else "stopped"
         stage = ("scenarios" if (self.folder / "propagation_summary.json").exists()
                  else "propagation")
         return status, stage
