@@ -53,8 +53,8 @@ def run_cli(cfg: dict, out: Path, *extra: str) -> tuple[float, dict]:
     cfg_path = out.parent / f"{out.name}.json"
     cfg_path.write_text(json.dumps(cfg, indent=2))
     t = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "veriloc_rt.cli", "run", str(cfg_path),
-                           "--out", str(out), *extra], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-I", "-m", "veriloc_rt.cli", "run", "--out", str(out),
+                           *extra, "--", str(cfg_path)], capture_output=True, text=True)
     wall = time.perf_counter() - t
     (out.parent / f"{out.name}.log").write_text(proc.stdout + proc.stderr)
     if proc.returncode != 0:

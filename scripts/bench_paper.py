@@ -37,8 +37,11 @@ def run_one(name: str, cfg: dict, out: Path, workers: int) -> dict:
     cfg_path = out / "config.json"
     cfg_path.write_text(json.dumps(cfg, indent=2))
     t = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "veriloc_rt.cli", "run", str(cfg_path), "--out",
-                           str(out / "run"), "--workers", str(workers)],
+    # -I: nothing imported from the current folder; --force: the bench owns this folder, and a
+    # rerun into it replaces the previous bench's run
+    proc = subprocess.run([sys.executable, "-I", "-m", "veriloc_rt.cli", "run", "--out",
+                           str(out / "run"), "--workers", str(workers), "--force", "--",
+                           str(cfg_path)],
                           capture_output=True, text=True)
     wall = time.perf_counter() - t
     (out / "stdout.txt").write_text(proc.stdout)
