@@ -20,7 +20,7 @@ trajectory chunks (``run.realisations = 1``). Prints one table:
   plots run on the client alone and are left out).
 
 Each Dask run's result files are checked against the serial ones (the CSVs byte for byte).
-Usage (19 minutes on the loaded 2-core machine of docs/performance.md):
+Usage (19 minutes on the loaded 2-core machine of docs/notes/performance-history.md):
 
     python scripts/bench_dask.py [--out bench-dask] [--realisations 4] [--points 60] [--nanny]
 """

@@ -2,7 +2,7 @@
 
 ``veriloc-rt`` (``main()`` without argv) ends its process: the objects it imported and built
 live to the end, and the interpreter's shutdown collected them for 0.3 s of every command
-(docs/performance.md, resume). A caller running commands in-process (``main(argv)``, the tests)
+(docs/notes/performance-history.md, resume). A caller running commands in-process (``main(argv)``, the tests)
 keeps its collector as it was.
 """
 

@@ -144,14 +144,14 @@ COST_RTOL = 0.10
 #: wall clock, the config (the first frequency-domain setting, right after the time-domain
 #: reference) came out 4-8 % above the rows that do the same work (other sample rates) in each
 #: of three sweeps of 120-240 points; with two passes back to back those rows still spread over
-#: 0.090-0.103 s/point on a noisy day (docs/performance.md)
+#: 0.090-0.103 s/point on a noisy day (docs/notes/performance-history.md)
 TIMING_PASSES = 2
 #: accuracy resolution of the front: one setting is more exact than another only if the units
 #: off the reference for the other alone outnumber those off for it alone beyond chance, in an
 #: exact one-sided sign test at this level (McNemar's test on the paired units: the same points
 #: and noise, the same links; :func:`more_exact`). Shares a few units apart are not resolved by
 #: a sample of 120: the share of fixes off flipped sign between zero paddings 2 and 4 from one
-#: sweep to the next (docs/performance.md)
+#: sweep to the next (docs/notes/performance-history.md)
 ACCURACY_ALPHA = 0.05
 #: time-domain settings apply the paths at sample_rate / TIME_DECIMATION (clipped by the chain to
 #: the smallest FFT that holds the band)
@@ -404,7 +404,7 @@ def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
     """The serving links' CIRs at ``points`` (the other points' links are not traced) and the
     warm cost per link: the fastest of ``repeats`` identical traces (the first of a setting also
     compiles its Dr.Jit kernels and, in a new process, starts the LLVM back end,
-    docs/performance.md; the trace is deterministic, so every repeat gives the same CIRs)."""
+    docs/notes/performance-history.md; the trace is deterministic, so every repeat gives the same CIRs)."""
 
     p = geometry.num_points
     on = np.zeros(p, dtype=bool)

@@ -404,7 +404,7 @@ def fft_length(n: int) -> int:
     Any length >= n gives the same convolution (to rounding); the 5-smooth ones run on
     pocketfft's radix-4, 2, 3 and 5 passes only. ``next_fast_len(n)`` also admits factors 7 and
     11, whose passes cost more per element: for the chain's grid (n = 1378) it picks
-    2 3^2 7 11 = 1386, which was measured slower than 2^5 3^2 5 = 1440 (docs/performance.md).
+    2 3^2 7 11 = 1386, which was measured slower than 2^5 3^2 5 = 1440 (docs/notes/performance-history.md).
     """
     return sfft.next_fast_len(n, real=True)
 
@@ -449,13 +449,13 @@ def _antenna_power(q: np.ndarray, scratch: bool = False) -> np.ndarray:
 #: sampled Doppler axis behaves like the maximum over this many cells per resolution. Counting
 #: the scan's hypotheses instead made noise-only false alarms fall with a finer step (0.18 at a
 #: 50 Hz step to 0.03 at 6.25 Hz, at a design 0.1); with 4 per resolution they are the design
-#: value at every step (tests/unit/phy/receiver/test_toa.py, docs/performance.md)
+#: value at every step (tests/unit/phy/receiver/test_toa.py, docs/notes/performance-history.md)
 DOPPLER_CELLS_PER_RESOLUTION = 4.0
 #: the first path's own Doppler (a parabola on the delay-Doppler map's grid) replaces the scan's
 #: (refined on the strongest path's block phases) only when they lie further apart than this
 #: share of the Doppler resolution 1 / T (a quarter: 0.9 dB of derotation loss, sinc^2(1/4)):
 #: closer, they are the same path's and the scan's is the finer estimate. A rule in scan steps
-#: made the fixes depend on the step (docs/performance.md)
+#: made the fixes depend on the step (docs/notes/performance-history.md)
 FIRST_PATH_DOPPLER_TOLERANCE = 0.25
 #: the first-path search's delay-Doppler map covers the lags up to the last one at which the
 #: Doppler scan's power comes within this many dB of its peak (and up to the strongest lag of the
@@ -463,7 +463,7 @@ FIRST_PATH_DOPPLER_TOLERANCE = 0.25
 #: window is not transformed. The first path precedes the strongest, and the map's own strongest
 #: cell, the relative threshold's reference, is one of the scan's strong cells: the scan differs
 #: from the map by its straddle loss (up to 3.9 dB without zero padding) and its rectangular
-#: window (docs/performance.md, "The first-path map's lags")
+#: window (docs/notes/performance-history.md, "The first-path map's lags")
 FIRST_PATH_MAP_REACH_DB = 10.0
 #: s, the margin past :data:`FIRST_PATH_MAP_REACH_DB`'s last lag
 FIRST_PATH_MAP_MARGIN_S = 1e-6

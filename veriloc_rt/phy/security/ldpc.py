@@ -31,7 +31,7 @@ _LLR_KNOWN = 40.0
 #: lengths would succeed with probability 5e-3 (n = 512) and 7e-5 (n = 1024) by the normal
 #: approximation (Polyanskiy, Poor, Verdu 2010); the NR code under 25-iteration BP sits about
 #: 1 dB from it, where the approximation gives 3e-6 and 2e-11 (:mod:`.coding_bounds`,
-#: tests/unit/phy/security/test_ldpc.py; docs/performance.md for the chain's decodes)
+#: tests/unit/phy/security/test_ldpc.py; docs/notes/performance-history.md for the chain's decodes)
 DECODE_MIN_INFORMATION = 0.8
 
 

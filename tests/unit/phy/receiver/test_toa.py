@@ -475,7 +475,7 @@ def test_doppler_spectra_add_up_groups_whose_bins_overlap():
 #: the cell count's approximation (a factor FA_FACTOR: measured 0.088-0.12 at 0.1 on 1000 draws
 #: with 1 and 5 antennas, 1 and 10 slots). FA_DRAWS draws give the rate a binomial std of 0.02;
 #: counting the scan's hypotheses gave 0.18 at 50 Hz and 0.03 at 6.25 Hz (10 slots, 400 draws:
-#: docs/performance.md) and fails this test
+#: docs/notes/performance-history.md) and fails this test
 FA_DESIGN, FA_FACTOR, FA_DRAWS = 0.1, 2.0, 240
 #: the two steps see the same noise: their rates differ only where a maximum straddles the
 #: threshold (measured 0.003 apart on 1000 draws); 0.04 is 2 binomial std of one rate
