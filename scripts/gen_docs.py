@@ -490,19 +490,23 @@ def outputs_md() -> str:
             "`run.json` and `montecarlo.csv`, one row per realisation and scenario:", ""]
     out += _columns_table(montecarlo.CSV_COLUMNS, _montecarlo_column)
     out += ["", "## `veriloc-rt compare`", "",
-            "`raytrace/` and `uma/` hold the two complete runs (the files above). Beside them "
+            "`raytrace/` and `uma/` or `umi/` (the stochastic twin: `propagation.stochastic_twin`, "
+            "[rule](compare.md)) hold the two complete runs (the files above). Beside them "
             "(written by `veriloc_rt/studies/compare.py`):", "",
             "| file | holds |", "| --- | --- |",
             "| `comparison.md` | the channel, benign-error and detector tables "
             "([example](compare.md)) |",
-            "| `comparison.json` | the same numbers: `channel`, `errors`, `detectors`, "
-            "`timing_s` |",
+            "| `comparison.json` | the same numbers: `twin` (model, rule, median BS and roof "
+            "heights, `match_pathloss` and the `pathloss_offset_db` applied), `channel` (per "
+            "model and link condition `all`/`los`/`nlos`, and `tr38901_table`), `errors`, "
+            "`detectors`, `timing_s` |",
             "| `comparison_points.csv` | per model, point and BS: `model,point,bs,toa_bias_m,"
             "rstd_error_m,aoa_error_deg,position_error_m` (benign scenario, standard PRS; the "
             "RSTD of BS 0, the reference, is empty) |",
-            "| `comparison_channel.csv` | `statistic,quantile,raytrace,uma,tr38901_los,"
-            "tr38901_nlos`: delay spread, azimuth and zenith spreads, K-factor, against TR "
-            "38.901 Table 7.5-6 |",
+            "| `comparison_channel.csv` | `condition,statistic,quantile,raytrace,twin,twin_model,"
+            "tr38901_table`: path loss, delay spread, azimuth and zenith spreads, K-factor over "
+            "all, LoS and NLoS links, against the twin's TR 38.901 Table 7.4.1-1 / 7.5-6 "
+            "medians |",
             "| `comparison_cdf.png`, `comparison_detectors.png` | error CDFs; detector rates "
             "side by side |",
             "", "## `veriloc-rt validate`", "",

@@ -369,10 +369,11 @@ def cmd_compare(args) -> int:
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise InputError("--workers", f"got {workers}, expected an integer >= 1")
-    res = run_compare(cfg, args.out, progress=ProgressBar(), workers=workers)
+    res = run_compare(cfg, args.out, progress=ProgressBar(), workers=workers,
+                      match_pathloss=args.match_pathloss)
     print(format_comparison(res))
     print(f"wrote {args.out}/ (comparison.md, comparison.json, comparison_*.csv, *.png, "
-          "raytrace/, uma/)")
+          f"raytrace/, {res.models[1]}/)")
     return 0
 
 
@@ -549,12 +550,16 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--force", action="store_true", help="overwrite existing key files")
     k.set_defaults(func=cmd_keys)
     cp = sub.add_parser("compare", help="the same topology, trajectory and attacks through ray "
-                        "tracing and through TR 38.901 UMa")
+                        "tracing and through its TR 38.901 twin (UMa for rooftop sites, UMi "
+                        "for street-level sites: propagation.stochastic_twin)")
     cp.add_argument("config", nargs="?", help="JSON config file (its propagation.model is ignored)")
     cp.add_argument("--out", required=True, help="output folder")
     cp.add_argument("--points", type=int, help="number of trajectory points")
     cp.add_argument("--seed", type=int, help="override the config's seed")
     cp.add_argument("--workers", type=int, help="processes for the per-point chains (default 2)")
+    cp.add_argument("--match-pathloss", action="store_true", help="shift the twin's path loss "
+                    "so that its median equals the traced one, LoS and NLoS links apart "
+                    "(separates mean loss from multipath structure)")
     cp.set_defaults(func=cmd_compare)
     b = sub.add_parser("bench", help="sweep the fidelity settings: time vs accuracy table and "
                        "chart with the Pareto front")

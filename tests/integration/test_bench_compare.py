@@ -159,19 +159,77 @@ def test_compare_files_and_numbers(compare_out):
                  "raytrace/metrics.json", "uma/metrics.json"):
         assert (compare_out / name).stat().st_size > 0, name
     data = json.loads((compare_out / "comparison.json").read_text())
+    # rooftop sites (25 m over 15 m roofs): the auto twin is UMa
+    assert data["twin"]["model"] == "uma" and data["twin"]["rule"].startswith("auto")
+    assert data["twin"]["bs_height_m"] > data["twin"]["roof_height_m"]
     for model in ("raytrace", "uma"):
-        ch = data["channel"][model]
+        ch = data["channel"][model]["all"]
         assert ch["links"] == 8 * 3
+        assert ch["links"] == data["channel"][model]["los"]["links"] + \
+            data["channel"][model]["nlos"]["links"]
         assert 0.0 <= ch["links_with_path_pct"] <= 100.0
         assert set(data["detectors"][model]) == {"none", "fbs", "meaconing", "jamming"}
         err = data["errors"][model]
         assert err["position_error_m"]["n"] <= 8
     # UMa draws every link with paths; the table values are the standard's
-    assert data["channel"]["uma"]["links_with_path_pct"] == 100.0
-    assert data["channel"]["uma_table"]["los"]["k_db"] == 9.0
+    assert data["channel"]["uma"]["all"]["links_with_path_pct"] == 100.0
+    assert data["channel"]["tr38901_table"]["scenario"] == "uma"
+    assert data["channel"]["tr38901_table"]["los"]["k_db"] == 9.0
     pts = _rows(compare_out / "comparison_points.csv")
     assert len(pts) == 2 * 8 * 3
     # the same trajectory in both runs: identical true positions in the two CSVs
     a = _rows(compare_out / "raytrace" / "none_results.csv")
     b = _rows(compare_out / "uma" / "none_results.csv")
     assert [(r["x_true"], r["y_true"]) for r in a] == [(r["x_true"], r["y_true"]) for r in b]
+
+
+# -- street-level sites: the UMi twin ----------------------------------------------------------
+#: street centrelines of the canyon lie at multiples of its pitch (block 30 m + street 5 m)
+STREET_SITES = "x,y,z\n-35,20,10\n35,-15,10\n10,35,10\n-20,-35,10\n0,0,10\n"
+
+
+@pytest.fixture(scope="module")
+def compare_umi_out(tmp_path_factory):
+    """ci-tiny with 10 m BSs standing in the streets (below the 15 m roofs), --match-pathloss."""
+    out = tmp_path_factory.mktemp("compare-umi")
+    (out / "sites.csv").write_text(STREET_SITES)
+    cfg = json.loads(Path(CONFIG).read_text())
+    cfg["topology"] = {"sites": str(out / "sites.csv"), "bs_height_m": 10.0}
+    (out / "street.json").write_text(json.dumps(cfg))
+    assert main(["compare", str(out / "street.json"), "--points", "8", "--workers", "1",
+                 "--match-pathloss", "--out", str(out / "cmp")]) == 0
+    return out / "cmp"
+
+
+def test_compare_uses_umi_for_street_level_sites(compare_umi_out):
+    from veriloc_rt.propagation.umi import umi_pathloss_db
+
+    data = json.loads((compare_umi_out / "comparison.json").read_text())
+    twin = data["twin"]
+    assert twin["model"] == "umi" and twin["rule"].startswith("auto")
+    assert twin["bs_height_m"] == 10.0 and twin["roof_height_m"] == 15.0
+    assert (compare_umi_out / "umi" / "metrics.json").stat().st_size > 0
+    assert not (compare_umi_out / "uma").exists()
+    run = json.loads((compare_umi_out / "umi" / "propagation_summary.json").read_text())
+    assert run["raytrace_stats"]["model"].startswith("umi/")
+    tab = data["channel"]["tr38901_table"]
+    assert tab["scenario"] == "umi" and tab["los"]["k_db"] == 9.0      # UMi mu_K (Table 7.5-6)
+    for cond, los in (("los", True), ("nlos", False)):
+        expect = umi_pathloss_db(tab["d_2d_m"][cond], 10.0, 1.5, 3.5e9, los)
+        assert tab[cond]["pathloss_db"] == pytest.approx(expect, abs=1e-9)
+    md = (compare_umi_out / "comparison.md").read_text()
+    assert "UMi-Street Canyon" in md and "### LoS links" in md and "### NLoS links" in md
+
+
+def test_match_pathloss_sets_the_twin_median_on_the_trace(compare_umi_out):
+    data = json.loads((compare_umi_out / "comparison.json").read_text())
+    off = data["twin"]["pathloss_offset_db"]
+    assert data["twin"]["match_pathloss"] is True
+    for cond in ("los", "nlos"):
+        rt = data["channel"]["raytrace"][cond].get("pathloss_db")
+        tw = data["channel"]["umi"][cond].get("pathloss_db")
+        if off["basis"][cond] == cond:
+            # the same draws shifted by a constant: medians equal up to float rounding
+            assert tw["p50"] == pytest.approx(rt["p50"], abs=1e-6), cond
+        else:
+            assert off[cond] == off["all"]

@@ -152,12 +152,25 @@ class RayTracingConfig:
 class PropagationConfig:
     """Channel model for every link."""
 
-    model: str = param("raytrace", "'raytrace' (Sionna RT on the scene) or 'uma' "
-                       "(stochastic TR 38.901 UMa)", choices=("raytrace", "uma"))
+    model: str = param("raytrace", "'raytrace' (Sionna RT on the scene), 'uma' (stochastic "
+                       "TR 38.901 UMa: rooftop macro sites) or 'umi' (stochastic TR 38.901 "
+                       "UMi - Street Canyon: street-level sites below the roofs)",
+                       choices=("raytrace", "uma", "umi"))
     carrier_frequency_hz: float = param(3.5e9, "carrier frequency", lo=0.5e9, hi=100e9)
-    uma_mode: str = param("fast_fading", "UMa: 'fast_fading' (clusters and rays, TR 38.901 "
-                          "7.5) or 'pathloss_only' (one direct path per link, as MATLAB-era "
-                          "simulators)", choices=("fast_fading", "pathloss_only"))
+    uma_mode: str = param("fast_fading", "UMa and UMi: 'fast_fading' (clusters and rays, "
+                          "TR 38.901 7.5) or 'pathloss_only' (one direct path per link, as "
+                          "MATLAB-era simulators)", choices=("fast_fading", "pathloss_only"))
+    stochastic_twin: str = param("auto", "the stochastic model `veriloc-rt compare` sets "
+                                 "against ray tracing: 'uma', 'umi', or 'auto' (UMi when the "
+                                 "BSs' median antenna height is below the scene's median roof "
+                                 "height, i.e. street-level sites; UMa for rooftop sites)",
+                                 choices=("auto", "uma", "umi"))
+    stochastic_pathloss_offset_los_db: float = param(0.0, "added to the path loss of every "
+                                                     "LoS serving link drawn by 'uma'/'umi' "
+                                                     "(`compare --match-pathloss` sets it)",
+                                                     lo=-100.0, hi=100.0)
+    stochastic_pathloss_offset_nlos_db: float = param(0.0, "the same for the NLoS serving "
+                                                      "links", lo=-100.0, hi=100.0)
     raytrace: RayTracingConfig = section(RayTracingConfig, "ray-tracing fidelity")
     ue_array: ArrayConfig = section(ArrayConfig, "UE antenna array")
 

@@ -336,7 +336,7 @@ def tr38901_pathloss_db(tab: dict, d_2d_m, h_bs_m, h_ut_m, fc_hz, los):
 @lru_cache(maxsize=1)
 def umi_table() -> dict:
     """The shipped UMi - Street Canyon path-loss table (parsed JSON, cached; read-only)."""
-    path = resources.files("veriloc_rt").joinpath("data", "umi_pathloss_tr38901_v18.json")
+    path = resources.files("veriloc_rt").joinpath("data", "umi_tr38901_v18.json")
     return json.loads(path.read_text())
 
 

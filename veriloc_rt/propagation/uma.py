@@ -1,4 +1,8 @@
-"""Stochastic TR 38.901 UMa channel producing the toolkit's :class:`~veriloc_rt.propagation.cir.CIR`.
+"""Stochastic TR 38.901 UMa (and UMi-SC) channel producing the toolkit's
+:class:`~veriloc_rt.propagation.cir.CIR`.
+
+``scenario`` picks the table (:mod:`veriloc_rt.propagation.tr38901`): "uma" (default) or "umi"
+(:func:`veriloc_rt.propagation.umi.umi_cir`); the procedure below is the same for both.
 
 Two modes:
 
@@ -29,6 +33,7 @@ from ..constants import SPEED_OF_LIGHT
 from .cir import CIR, array_response, doppler_shift
 from .uma_clusters import generate_rays
 from .uma_lsp import UmaLinkParameters, draw_link_parameters
+from .tr38901 import SCENARIO_NAMES, SCENARIOS, TR38901_VERSIONS
 from .uma_params import TR38901_VERSION, uma_los_probability, uma_pathloss_db
 
 __all__ = ["uma_cir", "uma_pathloss_db", "uma_los_probability", "UmaLinkParameters",
@@ -61,8 +66,8 @@ def _direction(frm: np.ndarray, to: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 def uma_cir(tx_pos, rx_pos, rx_vel, tx_vel, tx_index, fc_hz: float, element_pos,
             rng: np.random.Generator, mode: str = "fast_fading", *,
             spatial_consistency: bool = True, los_state=None,
-            return_parameters: bool = False):
-    """Channel impulse responses of TR 38.901 UMa for every link slot and trajectory point.
+            return_parameters: bool = False, scenario: str = "uma"):
+    """Channel impulse responses of TR 38.901 UMa (or UMi) for every link slot and point.
 
     Heights are z coordinates (ground at z = 0): the BS height ``tx_pos[..., 2]`` and the UE
     height ``rx_pos[:, 2]`` enter the path loss, LoS probability and ZSD tables.
@@ -80,8 +85,11 @@ def uma_cir(tx_pos, rx_pos, rx_vel, tx_vel, tx_index, fc_hz: float, element_pos,
     :param spatial_consistency: correlate LoS state and LSPs along the trajectory
     :param los_state: optional [num_points, num_tx] bool, forces LoS/NLoS instead of drawing it
     :param return_parameters: also return the drawn :class:`UmaLinkParameters`
+    :param scenario: "uma" or "umi", the TR 38.901 table
     :returns: :class:`CIR` (and :class:`UmaLinkParameters` if ``return_parameters``)
     """
+    if scenario not in SCENARIOS:
+        raise ValueError(f"Argument `scenario` must be one of {SCENARIOS}, not {scenario!r}")
     if mode not in MODES:
         raise ValueError(f"Argument `mode` must be one of {MODES}, not {mode!r}")
     if not isinstance(rng, np.random.Generator):
@@ -117,7 +125,8 @@ def uma_cir(tx_pos, rx_pos, rx_vel, tx_vel, tx_index, fc_hz: float, element_pos,
 
     wavelength = SPEED_OF_LIGHT / fc_hz
     par = draw_link_parameters(tx, rx_pos, tx_index, fc_hz, rng,
-                               spatial_consistency=spatial_consistency, los_state=los_state)
+                               spatial_consistency=spatial_consistency, los_state=los_state,
+                               scenario=scenario)
     aoa_az, aoa_zen = _direction(rx_pos[:, None, :], tx)
     aod_az, aod_zen = _direction(tx, rx_pos[:, None, :])
     d3 = np.linalg.norm(tx - rx_pos[:, None, :], axis=-1)
@@ -128,7 +137,8 @@ def uma_cir(tx_pos, rx_pos, rx_vel, tx_vel, tx_index, fc_hz: float, element_pos,
                  "aod_az": aod_az[..., None], "aod_zen": aod_zen[..., None],
                  "phase": np.zeros((p, t, 1)), "valid": np.ones((p, t, 1), dtype=bool)}
     else:
-        paths = _fast_fading_paths(par, fc_hz, ok, aoa_az, aoa_zen, aod_az, aod_zen, rng)
+        paths = _fast_fading_paths(par, fc_hz, ok, aoa_az, aoa_zen, aod_az, aod_zen, rng,
+                                   scenario)
 
     valid = paths["valid"] & ok[..., None]
     amp = 10.0 ** (-(par.pathloss_db + par.sf_db) / 20.0)
@@ -144,14 +154,16 @@ def uma_cir(tx_pos, rx_pos, rx_vel, tx_vel, tx_index, fc_hz: float, element_pos,
               interactions=np.zeros((p, t, n, 1), dtype=np.uint8), valid=valid,
               tx_index=tx_index.astype(np.int64), tx_pos=tx, rx_pos=rx_pos, los=par.los & ok,
               carrier_frequency=float(fc_hz),
-              meta={"model": "3GPP TR 38.901 UMa", "tr38901_version": TR38901_VERSION,
+              meta={"model": f"3GPP TR 38.901 {SCENARIO_NAMES[scenario]}",
+                    "tr38901_version": TR38901_VERSIONS[scenario],
                     "mode": mode, "spatial_consistency": bool(spatial_consistency),
                     "antennas": "isotropic, single vertical polarisation"})
     return (cir, par) if return_parameters else cir
 
 
 def _fast_fading_paths(par: UmaLinkParameters, fc_hz: float, ok: np.ndarray,
-                       aoa_az, aoa_zen, aod_az, aod_zen, rng) -> dict[str, np.ndarray]:
+                       aoa_az, aoa_zen, aod_az, aod_zen, rng,
+                       scenario: str) -> dict[str, np.ndarray]:
     """Rays of all links, scattered into [P, T, R] arrays sorted by delay (invalid last)."""
     p, t = ok.shape
     groups = []
@@ -162,7 +174,7 @@ def _fast_fading_paths(par: UmaLinkParameters, fc_hz: float, ok: np.ndarray,
         rays = generate_rays(cond, fc_hz, par.ds[sel], par.asd[sel], par.asa[sel], par.zsd[sel],
                              par.zsa[sel], np.nan_to_num(par.k_db[sel]), par.mu_lg_zsd[sel],
                              par.zod_offset[sel], aoa_az[sel], aoa_zen[sel], aod_az[sel],
-                             aod_zen[sel], rng)
+                             aod_zen[sel], rng, scenario)
         groups.append((sel, rays))
     r = max((g[1]["delay"].shape[1] for g in groups), default=1)
     out = {k: np.zeros((p, t, r), dtype=bool if k == "valid" else float) for k in _PATH_KEYS}

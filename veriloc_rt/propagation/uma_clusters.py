@@ -1,4 +1,7 @@
-"""TR 38.901 UMa small-scale parameters: clusters and rays (7.5 steps 5-8, 10, 11).
+"""TR 38.901 UMa / UMi-SC small-scale parameters: clusters and rays (7.5 steps 5-8, 10, 11).
+
+One procedure for both scenarios; ``scenario`` ("uma", "umi") picks the table's constants
+(cluster and ray counts, r_tau, zeta, c_DS, c_ASD, c_ASA, c_ZSA, C_phi, C_theta).
 
 For a group of links that share a LoS state this draws cluster delays (step 5, with the LoS
 delay scaling C_tau), cluster powers (step 6, per-cluster shadowing zeta, the -25 dB cluster
@@ -19,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .uma_params import cluster_parameters, uma_table
+from . import tr38901
 
 
 def _wrap_azimuth_deg(a: np.ndarray) -> np.ndarray:
@@ -58,21 +61,22 @@ def generate_rays(los: bool, fc_hz: float, ds: np.ndarray, asd: np.ndarray, asa:
                   zsd: np.ndarray, zsa: np.ndarray, k_db: np.ndarray, mu_lg_zsd: np.ndarray,
                   zod_offset: np.ndarray, los_aoa_az: np.ndarray, los_aoa_zen: np.ndarray,
                   los_aod_az: np.ndarray, los_aod_zen: np.ndarray,
-                  rng: np.random.Generator) -> dict[str, np.ndarray]:
+                  rng: np.random.Generator, scenario: str = "uma") -> dict[str, np.ndarray]:
     """Rays of a group of links in the same LoS state.
 
     ds : [L] float64, s; asd, asa, zsd, zsa : [L] float64, deg; k_db : [L] float64, dB (LoS only)
     mu_lg_zsd : [L] float64, lg(deg); zod_offset : [L] float64, deg
     los_aoa_az, los_aoa_zen, los_aod_az, los_aod_zen : [L] float64, rad, geometric directions
     (AoA: from the UE towards the BS; AoD: from the BS towards the UE)
+    scenario : "uma" or "umi", the TR 38.901 table
 
     :returns: dict of [L, R] arrays, R = N M (+1 for the LoS ray, placed last):
         ``delay`` (s, excess over the direct path), ``power`` (linear, relative to the link's
         total, LoS ray K/(K+1)), ``aoa_az``, ``aoa_zen``, ``aod_az``, ``aod_zen`` (rad),
         ``phase`` (rad), ``valid`` (bool, False for clusters cut at -25 dB)
     """
-    tab = uma_table()
-    cp = cluster_parameters(los, fc_hz)
+    tab = tr38901.scenario_table(scenario)
+    cp = tr38901.cluster_parameters(scenario, los, fc_hz)
     n, m = cp["num_clusters"], cp["rays_per_cluster"]
     nl = ds.size
     alpha = np.asarray(tab["ray_offsets"]["values"][:m])                # [M]

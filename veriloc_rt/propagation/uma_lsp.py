@@ -1,4 +1,8 @@
-"""TR 38.901 UMa link state and large-scale parameters (7.5 steps 2 and 4), spatially consistent.
+"""TR 38.901 UMa / UMi-SC link state and large-scale parameters (7.5 steps 2 and 4), spatially
+consistent.
+
+One procedure for both scenarios: ``scenario`` ("uma", "umi") picks the table
+(:mod:`veriloc_rt.propagation.tr38901`); the draws and their order are the same.
 
 The seven LSPs (SF, K, DS, ASD, ASA, ZSD, ZSA) of a link are jointly Gaussian in the log
 domain with the Table 7.5-6 means, deviations and cross-correlations. With
@@ -13,7 +17,8 @@ independent processes (the spec draws them separately).
 
 The LoS state is the comparison of a uniform variate with Table 7.4.2-1's probability; with
 spatial consistency the uniform is the normal CDF of a 50 m OU process (UMa LOS-state
-correlation distance of Table 7.6.3.1-2, [unverified: from memory]).
+correlation distance of Table 7.6.3.1-2, [unverified: from memory]; UMi uses the same 50 m,
+equally unverified: see the tables' ``los_state_decorrelation_m``).
 """
 
 from __future__ import annotations
@@ -23,13 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
-from .uma_params import (correlation_matrix, decorrelation_distances_m, lsp_statistics,
-                         uma_los_probability, uma_pathloss_db, uma_table, zod_offset_deg)
+from . import tr38901
 
 
 @dataclass(frozen=True, eq=False)
 class UmaLinkParameters:
-    """Per-link state and large-scale parameters drawn for a UMa channel.
+    """Per-link state and large-scale parameters drawn for a UMa or UMi channel.
 
     los : [num_points, num_tx] bool
     sf_db : [num_points, num_tx] float64, dB, shadow fading (added to the path loss)
@@ -37,7 +41,7 @@ class UmaLinkParameters:
     ds : [num_points, num_tx] float64, s, rms delay spread
     asd, asa, zsd, zsa : [num_points, num_tx] float64, deg, rms angle spreads (clipped)
     mu_lg_zsd : [num_points, num_tx] float64, lg(deg), ZSD log-mean (ZOD ray spread 3/8 10^mu)
-    zod_offset : [num_points, num_tx] float64, deg, Table 7.5-7 ZOD offset
+    zod_offset : [num_points, num_tx] float64, deg, Table 7.5-7 (UMa) / 7.5-8 (UMi) ZOD offset
     pathloss_db : [num_points, num_tx] float64, dB, Table 7.4.1-1 basic path loss
     d_2d : [num_points, num_tx] float64, m
     """
@@ -81,7 +85,8 @@ def _ou_innovations(rx_pos: np.ndarray, corr_dist_m: np.ndarray, num_proc: int,
 def draw_link_parameters(tx_pos: np.ndarray, rx_pos: np.ndarray, tx_index: np.ndarray,
                          fc_hz: float, rng: np.random.Generator, *,
                          spatial_consistency: bool = True,
-                         los_state: np.ndarray | None = None) -> UmaLinkParameters:
+                         los_state: np.ndarray | None = None,
+                         scenario: str = "uma") -> UmaLinkParameters:
     """Draw LoS states, path loss and correlated LSPs for every link slot (7.5 steps 2-4).
 
     Heights are the z coordinates (ground at z = 0). Slots with ``tx_index < 0`` get values
@@ -94,7 +99,9 @@ def draw_link_parameters(tx_pos: np.ndarray, rx_pos: np.ndarray, tx_index: np.nd
     :param rng: numpy Generator (the only source of randomness)
     :param spatial_consistency: OU-correlate LSPs and LoS state along the trajectory
     :param los_state: optional [num_points, num_tx] bool, forces the LoS state (no draw)
+    :param scenario: "uma" or "umi" (the TR 38.901 table)
     """
+    tab = tr38901.scenario_table(scenario)
     p, t = tx_index.shape
     d_2d = np.linalg.norm(tx_pos[..., :2] - rx_pos[:, None, :2], axis=-1)
     h_bs = tx_pos[..., 2]
@@ -103,37 +110,38 @@ def draw_link_parameters(tx_pos: np.ndarray, rx_pos: np.ndarray, tx_index: np.nd
     ids, inv = np.unique(tx_index, return_inverse=True)
     inv = inv.reshape(p, t)
     pts = np.arange(p)[:, None]
-    los_corr = float(uma_table()["los_state_decorrelation_m"]["value"])
+    los_corr = float(tab["los_state_decorrelation_m"]["value"])
 
     # LoS state (step 2): uniform = Phi(OU process) per transmitter id
     g = _ou_innovations(rx_pos, np.array([los_corr]), ids.size, rng, spatial_consistency)
     u = ndtr(g[..., 0])[pts, inv]                                     # [P, T]
     if los_state is None:
-        los = u < uma_los_probability(d_2d, h_ut)
+        los = u < tr38901.los_probability(scenario, d_2d, h_ut)
     else:
         los = np.asarray(los_state, dtype=bool)
         if los.shape != (p, t):
             raise ValueError(f"Argument `los_state` must have shape {(p, t)}, not {los.shape}")
 
-    pl = np.where(los, uma_pathloss_db(d_2d, h_bs, h_ut, fc_hz, True),
-                  uma_pathloss_db(d_2d, h_bs, h_ut, fc_hz, False))
+    pl = np.where(los, tr38901.pathloss_db(scenario, d_2d, h_bs, h_ut, fc_hz, True),
+                  tr38901.pathloss_db(scenario, d_2d, h_bs, h_ut, fc_hz, False))
 
     lg = np.zeros((p, t, 7))
     mu_zsd = np.zeros((p, t))
     zod_off = np.zeros((p, t))
     for cond in (True, False):
-        w = _ou_innovations(rx_pos, decorrelation_distances_m(cond), ids.size, rng,
-                            spatial_consistency)[pts, inv]                # [P, T, 7]
-        chol = np.linalg.cholesky(correlation_matrix(cond))
+        w = _ou_innovations(rx_pos, tr38901.decorrelation_distances_m(scenario, cond), ids.size,
+                            rng, spatial_consistency)[pts, inv]           # [P, T, 7]
+        chol = np.linalg.cholesky(tr38901.correlation_matrix(scenario, cond))
         z = np.einsum("ij,ptj->pti", chol, w)
-        mu, sd = lsp_statistics(cond, fc_hz, d_2d.ravel(), h_ut.ravel())
+        mu, sd = tr38901.lsp_statistics(scenario, cond, fc_hz, d_2d.ravel(), h_ut.ravel(),
+                                        h_bs.ravel())
         vals = mu.reshape(p, t, 7) + sd.reshape(p, t, 7) * z
         sel = los == cond
         lg[sel] = vals[sel]
         mu_zsd[sel] = mu.reshape(p, t, 7)[..., 5][sel]
-        zod_off[sel] = zod_offset_deg(cond, fc_hz, d_2d[sel], h_ut[sel])
+        zod_off[sel] = tr38901.zod_offset_deg(scenario, cond, fc_hz, d_2d[sel], h_ut[sel])
 
-    clip = uma_table()["lsp"]["clip_deg"]
+    clip = tab["lsp"]["clip_deg"]
     return UmaLinkParameters(
         los=los, sf_db=lg[..., 0], k_db=np.where(los, lg[..., 1], np.nan), ds=10.0 ** lg[..., 2],
         asd=np.minimum(10.0 ** lg[..., 3], clip["ASD"]), asa=np.minimum(10.0 ** lg[..., 4], clip["ASA"]),

@@ -612,8 +612,8 @@ def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = Non
               ("toa_bias_m", "ToA bias against the straight-line delay, m"),
               ("rstd_error_m", "RSTD error (BS j - BS 0), m"),
               ("aoa_error_deg", "AoA error against the BS direction, deg"))
-    colours = {"raytrace": "tab:blue", "uma": "tab:orange"}
-    names = {"raytrace": "ray tracing", "uma": "TR 38.901 UMa"}
+    colours = {"raytrace": "tab:blue", "uma": "tab:orange", "umi": "tab:green"}
+    names = {"raytrace": "ray tracing", "uma": "TR 38.901 UMa", "umi": "TR 38.901 UMi"}
     with figure(path, title or "benign errors: ray tracing vs UMa", nrows=2, ncols=2,
                  figsize=(11.0, 8.0)) as (fig, axes):
         for ax, (attr, label) in zip(axes.ravel(), panels):
@@ -640,7 +640,7 @@ def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | No
                                                for m in models)]
     if not scen:
         raise ValueError("Argument `detectors` holds no evaluated scenario")
-    hatches = {"raytrace": "", "uma": "//"}
+    hatches = {"raytrace": "", "uma": "//", "umi": "//"}
     with figure(path, title or "correct decisions: ray tracing (plain) vs UMa (hatched)",
                  ncols=len(scen), figsize=(3.2 * len(scen) + 1.0, 4.2), squeeze=False) as (fig, axes):
         for ax, s in zip(axes[0], scen):

@@ -35,7 +35,7 @@ from ..errors import InputError
 from ..fileio import atomic_write_text
 from ..inputs import read_text
 from ..propagation.raytrace import Propagation, trace
-from ..propagation.stochastic import uma_propagation
+from ..propagation.stochastic import STOCHASTIC_MODELS, stochastic_propagation
 from ..report import plots
 from ..report.detection import analyse_detection
 from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
@@ -84,8 +84,8 @@ def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | No
     point-to-point, batch poorly, and were half the tracing time of the paper run when traced at
     every point. (UMa draws them everywhere: free, and the draws stay as they were.)
     """
-    if cfg.propagation.model == "uma":
-        return uma_propagation(geometry, cfg.propagation, cfg.seed)
+    if cfg.propagation.model in STOCHASTIC_MODELS:
+        return stochastic_propagation(geometry, cfg.propagation, cfg.seed)
     attacks = any(s != "none" for s in cfg.run.scenarios)
     window = cfg.run.attack_points(geometry.num_points) & attacks
     cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None

@@ -66,3 +66,51 @@ def test_uma_reference_medians_from_table_7_5_6():
     assert t["los"]["asa_deg"] == pytest.approx(64.6, abs=0.1)
     assert t["los"]["zsa_deg"] == pytest.approx(8.9, abs=0.1)
     assert t["los"]["k_db"] == 9.0 and t["nlos"]["k_db"] is None
+
+
+def _links(powers_db, los):
+    """One single-path link per entry (points axis), path power 10^(-PL/10)."""
+    p = len(powers_db)
+    shape = (p, 1, 1)
+    g = (10 ** (-np.asarray(powers_db, float) / 20)).astype(complex).reshape(p, 1, 1, 1)
+    d0 = 100.0 / SPEED_OF_LIGHT
+    return CIR(delays=np.full(shape, d0), gains=g, aoa_az=np.zeros(shape),
+               aoa_zen=np.full(shape, np.pi / 2), aod_az=np.zeros(shape),
+               aod_zen=np.full(shape, np.pi / 2), doppler=np.zeros(shape),
+               interactions=np.zeros(shape + (1,), np.uint8), valid=np.ones(shape, bool),
+               tx_index=np.zeros((p, 1), np.int64), tx_pos=np.tile([100.0, 0.0, 10.0], (p, 1, 1)),
+               rx_pos=np.tile([0.0, 0.0, 1.5], (p, 1)), los=np.asarray(los).reshape(p, 1),
+               carrier_frequency=3.5e9)
+
+
+def test_pathloss_statistics_and_offsets_per_los_state():
+    """Traced LoS 70/80 dB, NLoS 100/110/120 dB; twin LoS 60 dB, NLoS 90/130 dB: medians 75 / 110
+    against 60 / 110 -> offsets +15 (LoS), 0 (NLoS); all links 100 vs 90 -> +10."""
+    from veriloc_rt.studies.compare import pathloss_offsets
+
+    traced = _links([70, 80, 100, 110, 120], [True, True, False, False, False])
+    twin = _links([60, 90, 130], [True, False, False])
+    assert channel_statistics(traced, traced.los)["pathloss_db"]["p50"] == pytest.approx(75.0)
+    assert channel_statistics(traced, ~traced.los)["pathloss_db"]["p50"] == pytest.approx(110.0)
+    off = pathloss_offsets(traced, twin)
+    assert off["los"] == pytest.approx(15.0) and off["nlos"] == pytest.approx(0.0)
+    assert off["all"] == pytest.approx(10.0) and off["basis"] == {"los": "los", "nlos": "nlos"}
+    # a state the twin never drew falls back on the all-links offset
+    off = pathloss_offsets(traced, _links([90, 130], [False, False]))
+    assert off["basis"]["los"] == "all" and off["los"] == off["all"] == pytest.approx(-10.0)
+
+
+def test_umi_reference_from_tables():
+    """UMi at 3.5 GHz (lg(1 + 3.5) = 0.65321): LoS lgDS -7.14 - 0.24 x 0.65321 -> 50.5 ns,
+    NLoS lgDS -6.83 - 0.24 x 0.65321 -> 103.1 ns; path loss Table 7.4.1-1 at 100 m, 10 m BS."""
+    from veriloc_rt.propagation.umi import umi_pathloss_db
+    from veriloc_rt.studies.compare import reference_statistics
+
+    t = reference_statistics("umi", 3.5e9, 100.0)
+    assert t["h_bs_m"] == 10.0
+    assert t["los"]["ds_ns"] == pytest.approx(50.5, abs=0.05)
+    assert t["nlos"]["ds_ns"] == pytest.approx(103.1, abs=0.05)
+    assert t["los"]["pathloss_db"] == pytest.approx(umi_pathloss_db(100.0, 10.0, 1.5, 3.5e9, True))
+    assert t["nlos"]["pathloss_db"] == pytest.approx(umi_pathloss_db(100.0, 10.0, 1.5, 3.5e9,
+                                                                     False))
+    assert t["los"]["k_db"] == 9.0 and t["nlos"]["k_db"] is None
