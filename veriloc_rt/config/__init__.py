@@ -31,7 +31,8 @@ from .run import SCENARIOS, RunConfig
 from .security import SecurityConfig
 from .world import SceneConfig, TopologyConfig, TrajectoryConfig
 
-#: BSs that serve every point: the three of the hexagonal cell (world.topology)
+#: BSs that serve every point in the paper: the three of the hexagonal cell (world.topology);
+#: ``topology.num_trps`` sets the number
 SERVING_BS = 3
 
 
@@ -53,20 +54,34 @@ class Config:
     run: RunConfig = section(RunConfig, "scenarios, attack window, outcome threshold, Monte Carlo "
                              "realisations")
 
+    def __post_init__(self) -> None:
+        # per-TRP tuples shorter than topology.num_trps are completed (NRConfig.for_trps; the
+        # encryption flags repeat the last one listed), so a user lists only what differs
+        n = self.topology.num_trps
+        if self.nr.num_bs < n:
+            object.__setattr__(self, "nr", self.nr.for_trps(
+                n, self.security.tag_scheme != "none"))
+        enc = self.security.encrypted
+        if enc and len(enc) < n:
+            object.__setattr__(self, "security", dataclasses.replace(
+                self.security, encrypted=enc + (enc[-1],) * (n - len(enc))))
+
     def validate(self, path: str) -> None:
         """Checks across sections (each section checked its own fields already)."""
-        if self.nr.num_bs != SERVING_BS:
+        n = self.topology.num_trps
+        if self.nr.num_bs != n:
             raise bad_value("nr.comb_offsets", list(self.nr.comb_offsets),
-                            f"{SERVING_BS} offsets, one per serving BS (the hexagonal layout "
-                            f"serves every point from the {SERVING_BS} BSs of its cell)")
+                            f"at most {n} offsets, one per TRP (topology.num_trps; "
+                            "missing ones are derived)")
         if len(self.security.encrypted) != self.nr.num_bs:
             raise bad_value("security.encrypted", list(self.security.encrypted),
-                            f"{self.nr.num_bs} flags, one per serving BS of nr.comb_offsets")
+                            f"at most {n} flags, one per TRP (topology.num_trps; missing ones "
+                            "repeat the last)")
         slots = self.threats.fbs.spoofed_slots
         for i, k in enumerate(slots):
             if not 0 <= k < self.nr.num_bs:
                 raise bad_value(f"threats.fbs.spoofed_slots[{i}]", k,
-                                f"a serving-BS slot 0..{self.nr.num_bs - 1}")
+                                f"a TRP slot 0..{self.nr.num_bs - 1} (topology.num_trps)")
         if len(set(slots)) != len(slots):
             raise bad_value("threats.fbs.spoofed_slots", list(slots), "no repeated slot")
         if self.threats.fbs.mode == "bias" and len(set(slots or range(self.nr.num_bs))) == self.nr.num_bs:

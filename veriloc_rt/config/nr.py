@@ -2,11 +2,12 @@
 
 Per-BS tuples (``prs_ids``, ``comb_offsets``) are indexed by the BS's position in the serving set
 (0 is the reference BS); their common length is the number of simultaneously transmitting BSs.
+Tuples shorter than ``topology.num_trps`` are completed by :meth:`NRConfig.for_trps`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .fields import param
 from ..errors import InputError, bad_value
@@ -76,6 +77,44 @@ class NRConfig:
     @property
     def prs_symbols(self) -> range:
         return range(self.start_symbol, self.start_symbol + self.num_symbols)
+
+    def for_trps(self, n: int, tags: bool) -> "NRConfig":
+        """This config with per-TRP tuples completed to ``n`` TRPs (the listed ones kept).
+
+        dl-PRS-SequenceId (TS 38.211 7.4.1.7.2): each further TRP takes the next id above the
+        largest listed (mod 4096), so the TRPs' scrambling sequences differ. Comb offset
+        k_offset (TS 38.211 7.4.1.7.3): each further TRP takes the lowest offset that neither a
+        listed TRP's PRS nor (with tags) its tag at k_offset + K_comb/2 uses, so the TRPs'
+        PRS REs are disjoint in frequency (TS 38.214 5.1.6.5's comb-multiplexed resources).
+
+        :raises InputError: naming ``topology.num_trps`` when the comb has too few free offsets
+        """
+        if n <= self.num_bs:
+            return self
+        ids = list(self.prs_ids)
+        while len(ids) < n:
+            nxt = (max(ids) + 1) % 4096
+            while nxt in ids:
+                nxt = (nxt + 1) % 4096
+            ids.append(nxt)
+        half = self.comb // 2
+        used = set(self.comb_offsets) | ({(o + half) % self.comb for o in self.comb_offsets}
+                                         if tags else set())
+        offsets = list(self.comb_offsets)
+        for o in range(self.comb):
+            if len(offsets) == n:
+                break
+            if o in used or (tags and (o + half) % self.comb in used):
+                continue
+            offsets.append(o)
+            used |= {o, (o + half) % self.comb} if tags else {o}
+        if len(offsets) < n:
+            per = self.comb // 2 if tags else self.comb
+            raise InputError("topology.num_trps", f"{n} TRPs, but comb {self.comb} holds "
+                             f"{per} TRPs' PRS{' and tags' if tags else ''} in one slot "
+                             f"(nr.comb_offsets {list(self.comb_offsets)} leave room for "
+                             f"{len(offsets)}): a larger nr.comb, or fewer TRPs")
+        return replace(self, prs_ids=tuple(ids), comb_offsets=tuple(offsets))
 
     def validate(self, path: str = "nr") -> None:
         """Cross-field checks; raise :class:`InputError` naming the field."""

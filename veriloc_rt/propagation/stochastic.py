@@ -35,8 +35,8 @@ def uma_propagation(geometry, cfg: PropagationConfig, seed: int,
     elem = ula_element_positions(arr.num_elements, arr.spacing_wavelengths * lam,
                                  np.deg2rad(arr.axis_azimuth_deg))
     active = np.ones(P, bool) if adversary_points is None else np.asarray(adversary_points, bool)
-    bs_tx = bs_pos[serving]
-    zeros = np.zeros((P, 3, 3))
+    bs_tx = bs_pos[serving]                       # [P, num_trps, 3]
+    zeros = np.zeros(bs_tx.shape)
     mode = cfg.uma_mode
     bs_ue = uma_cir(bs_tx, ue.pos, ue.vel, zeros, serving, fc, elem,
                     stream(seed, "uma", 0), mode)
@@ -48,5 +48,5 @@ def uma_propagation(geometry, cfg: PropagationConfig, seed: int,
                      stream(seed, "uma", 2), mode)
     adv_ue = dataclasses.replace(adv_ue, tx_index=np.where(active, ADVERSARY_TX, NO_TX)[:, None])
     stats = {"model": f"uma/{mode}", "wall_s": time.perf_counter() - t0, "calls": 0,
-             "cache_hits": 0, "trace_s": 0.0, "links": int(3 * P + 4 * active.sum())}
+             "cache_hits": 0, "trace_s": 0.0, "links": int(serving.shape[1] * P + (serving.shape[1] + 1) * active.sum())}
     return Propagation(bs_ue=bs_ue, bs_adv=bs_adv, adv_ue=adv_ue, stats=stats)

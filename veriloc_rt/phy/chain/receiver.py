@@ -141,7 +141,20 @@ class FixStage:
         """:param bs_pos: [num_bs, 3] float64, m; ue_height_m: m, the UE's known height"""
         solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
         det = timing.detected
-        return solver(bs_pos, np.where(det, timing.rstd_s, np.nan), 0, det)
+        ref = reference_trp(timing)
+        rstd = timing.rstd_s if ref == 0 else timing.toa_s - timing.toa_s[ref]
+        return solver(bs_pos, np.where(det, rstd, np.nan), ref, det)
+
+
+def reference_trp(timing: Timing) -> int:
+    """The RSTD reference: slot 0 (the strongest TRP by the serving order) when it is heard,
+    else the heard TRP with the highest correlation-peak SNR (0 when none is heard). With three
+    TRPs a lost slot 0 leaves two, too few for a fix whichever is the reference."""
+    det = np.asarray(timing.detected, bool)
+    if det[0] or not det.any():
+        return 0
+    snr = np.array([e.peak_snr_db if e.detected else -np.inf for e in timing.toa_estimates])
+    return int(np.argmax(snr))
 
 
 def zenith_from_fix(bs_pos: np.ndarray, fix: MultilaterationResult) -> np.ndarray:
