@@ -89,6 +89,15 @@ class Config:
                             "with threats.fbs.mode 'bias', a subset of the serving BSs (a bias on "
                             "every BS is common and cancels in every RSTD)")
 
+        tags = self.security.tag_scheme != "none"
+        self.nr.check_resources(tags)
+        _, rep = self.nr.slot_plan(tags)
+        for i, s in enumerate(self.receiver.tag_slots):
+            if rep < self.nr.slots_per_frame and s >= rep:
+                raise bad_value(f"receiver.tag_slots[{i}]", s,
+                                f"a slot 0..{rep - 1}: each of the {self.nr.num_bs} TRPs "
+                                f"transmits in {rep} of the frame's PRS slots (slot groups, "
+                                "docs/real-cities.md) and its tags are checked in its own")
         self._validate_receiver()
         self._validate_world()
         self.run.check_trajectory_length(self.trajectory.num_points, "trajectory.num_points")

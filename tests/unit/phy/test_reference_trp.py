@@ -9,7 +9,7 @@ from veriloc_rt.phy.chain.receiver import reference_trp
 
 def _timing(detected, snr):
     ests = [SimpleNamespace(detected=d, peak_snr_db=s) for d, s in zip(detected, snr)]
-    return SimpleNamespace(detected=np.array(detected), toa_estimates=ests)
+    return SimpleNamespace(detected=np.array(detected), estimates=ests)
 
 
 def test_reference_is_slot_zero_when_heard():

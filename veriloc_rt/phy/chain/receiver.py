@@ -153,7 +153,7 @@ def reference_trp(timing: Timing) -> int:
     det = np.asarray(timing.detected, bool)
     if det[0] or not det.any():
         return 0
-    snr = np.array([e.peak_snr_db if e.detected else -np.inf for e in timing.toa_estimates])
+    snr = np.array([e.peak_snr_db if e.detected else -np.inf for e in timing.estimates])
     return int(np.argmax(snr))
 
 
@@ -213,7 +213,8 @@ class AngleStage:
 class TagStage:
     """The tag check of every detected BS.
 
-    :param tag_slots: indices (in the frame) of the slots whose tags are checked
+    :param tag_slots: which of each BS's PRS slots have their tags checked (indices in the
+        frame with one slot group; else counted from the BS's group's first slot)
     :param slots: the frame's slot numbers
     """
 
@@ -245,7 +246,8 @@ class TagStage:
         tags = np.zeros(len(estimates), dtype=bool)
         for b, e in enumerate(estimates):
             if (reuse and b < len(kept[3]) and e is kept[3][b]
-                    and not received.reaches(lay.prs_mask(b) | lay.tag_mask(b), self.tag_slots)):
+                    and not received.reaches(lay.prs_mask(b) | lay.tag_mask(b),
+                                             self.slots_of(lay, b))):
                 tags[b] = kept[4][b]
                 continue
             rep = replicas[b] if replicas is not None else None
@@ -253,6 +255,11 @@ class TagStage:
         if received is not None and received.plain:
             self._benign = (grid, verifier, frame, tuple(estimates), tags.copy())
         return tags
+
+    def slots_of(self, layout, bs: int) -> list[int]:
+        """Indices of the frame's slots whose tags of BS ``bs`` are checked: its own
+        ``tag_slots``-th PRS slots (:meth:`~veriloc_rt.phy.nr.grid.ReLayout.own_slot`)."""
+        return [layout.own_slot(bs, t) for t in self.tag_slots]
 
     def one(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
             replica: np.ndarray | None) -> bool:
@@ -264,7 +271,7 @@ class TagStage:
         nrm = np.linalg.norm(w)
         w = w / nrm if nrm > 0 else np.ones_like(w) / np.sqrt(w.size)
         lay = verifier.layout
-        for s in self.tag_slots:
+        for s in self.slots_of(lay, bs):
             combined = np.tensordot(w, grid[:, s], axes=(0, 0))
             if replica is None:
                 ok = verifier(combined, bs, frame, int(self.slots[s]))
