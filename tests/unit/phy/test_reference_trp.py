@@ -23,3 +23,14 @@ def test_reference_falls_back_to_the_strongest_heard():
 
 def test_reference_without_any_heard_is_zero():
     assert reference_trp(_timing([False, False, False], [1.0, 2.0, 3.0])) == 0
+
+
+def test_range_std_is_the_crlb_plus_the_floor():
+    from veriloc_rt.phy.chain.receiver import range_std
+
+    b = 624 * 15e3                        # 52 PRB at 15 kHz
+    snr_db = np.array([10.0, 30.0])
+    snr = 10 ** (snr_db / 10) - 1
+    # var(tau) = 1 / (8 pi^2 beta^2 SNR), beta^2 = B^2 / 12, range = c tau
+    want = np.sqrt((299_792_458.0 ** 2) / (8 * np.pi**2 * (b**2 / 12) * snr) + 3.0**2)
+    np.testing.assert_allclose(range_std(snr_db, b, 3.0), want, rtol=1e-12)

@@ -111,7 +111,12 @@ class PositioningChain:
                                         noise if noise is not None else WhiteNoise(), self.noise_var)
         self.timing = TimingStage(ToAEstimator(receiver, channel.timing_guard_s), self.ofdm, self.slots,
                                   channel, receiver.search_window_s, nr.prs_symbols, self.noise_var)
-        self.fix = FixStage(receiver.max_residual_m)
+        weighted = (receiver.fix_weighting == "snr"
+                    or (receiver.fix_weighting == "auto" and nr.num_bs > 3))
+        self.fix = FixStage(receiver.max_residual_m, weighted,
+                            nr.num_subcarriers * nr.subcarrier_spacing_hz,
+                            receiver.range_std_floor_m, receiver.integrity_false_alarm,
+                            receiver.fault_exclusion)
         self.angles = AngleStage(AoAEstimator(receiver.aoa_method, receiver.aoa_num_sources or None,
                                               ue_array.spacing_wavelengths, axis),
                                  receiver.aoa_snapshots)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...config.channel import ChannelConfig, ReceiverConfig
+from ...constants import SPEED_OF_LIGHT
 from ...propagation.cir import CIR
 from ..channel import Links
 from ..nr.ofdm import OFDM
@@ -132,18 +133,51 @@ class FixStage:
     """The DL fix from the RSTDs of the detected BSs (BS 0 the reference).
 
     :param max_residual_m: m, the solver's residual check
+    :param weighted: weighted least squares with each ToA's std from :func:`range_std` and the
+        chi-square integrity test (``receiver.fix_weighting``); False: the unweighted fit
+    :param bandwidth_hz: Hz, the PRS bandwidth (the CRLB's); floor_m: m, the std floor
+    :param false_alarm: the integrity test's size; exclusion: fault exclusion on
     """
 
-    def __init__(self, max_residual_m: float):
+    def __init__(self, max_residual_m: float, weighted: bool = False, bandwidth_hz: float = 0.0,
+                 floor_m: float = 0.0, false_alarm: float = 0.01, exclusion: bool = True):
         self.max_residual_m = float(max_residual_m)
+        self.weighted, self.bandwidth_hz, self.floor_m = bool(weighted), float(bandwidth_hz), float(floor_m)
+        self.false_alarm, self.exclusion = float(false_alarm), bool(exclusion)
 
     def __call__(self, timing: Timing, bs_pos: np.ndarray, ue_height_m: float) -> MultilaterationResult:
         """:param bs_pos: [num_bs, 3] float64, m; ue_height_m: m, the UE's known height"""
-        solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
         det = timing.detected
         ref = reference_trp(timing)
         rstd = timing.rstd_s if ref == 0 else timing.toa_s - timing.toa_s[ref]
-        return solver(bs_pos, np.where(det, rstd, np.nan), ref, det)
+        if not self.weighted:
+            solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
+            return solver(bs_pos, np.where(det, rstd, np.nan), ref, det)
+        # the weighted fit's check is the chi-square test: the rms check is left wide open
+        solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=1e9,
+                                false_alarm=self.false_alarm, exclusion=self.exclusion)
+        snr = np.array([e.peak_snr_db for e in timing.estimates], dtype=float)
+        sig = range_std(snr, self.bandwidth_hz, self.floor_m)
+        return solver(bs_pos, np.where(det, rstd, np.nan), ref, det, range_std_m=sig)
+
+
+def range_std(peak_snr_db: np.ndarray, bandwidth_hz: float, floor_m: float) -> np.ndarray:
+    """Range std of each ToA, m: the CRLB of a delay estimate, var(tau) >= 1 / (8 pi^2 beta^2
+    SNR) with beta the rms bandwidth (Kay, Fundamentals of Statistical Signal Processing:
+    Estimation Theory, 1993, eq. 3.41 / example 3.13; Gezici et al., IEEE Signal Processing
+    Magazine 22(4), 2005, eq. 3), for a PRS spectrum flat over B (beta^2 = B^2 / 12), so
+    sigma_r^2 = 3 c^2 / (2 pi^2 B^2 SNR), plus ``floor_m`` in quadrature. SNR is the
+    post-integration SNR, taken from the correlation peak over its noise floor as
+    10^(peak_snr_db / 10) - 1 (the peak metric holds the noise's mean once); at least 1e-3.
+
+    :param peak_snr_db: [num_bs] float64, dB (non-finite counts as SNR 1e-3: such a BS is not
+        detected and the fix does not use it)
+    :returns: [num_bs] float64, m
+    """
+    snr = np.maximum(10.0 ** (np.asarray(peak_snr_db, dtype=float) / 10.0) - 1.0, 1e-3)
+    snr = np.where(np.isfinite(snr), snr, 1e-3)
+    crlb = 3.0 * SPEED_OF_LIGHT**2 / (2.0 * np.pi**2 * bandwidth_hz**2 * snr)
+    return np.sqrt(crlb + floor_m**2)
 
 
 def reference_trp(timing: Timing) -> int:
