@@ -77,3 +77,19 @@ def test_run_uma_six_trps(tmp_path):
     assert np.all(np.diff(d, axis=1) >= -1e-3)        # nearest first, the reference first
     rows = res.rows["none"]
     assert sum(r.outcome == "success" for r in rows) >= 6   # a working chain fixes most points
+    # the row's TRP columns and the links CSV agree with each other and with the geometry
+    import csv
+    with open(tmp_path / "r" / "none_results.csv") as fh:
+        table = list(csv.DictReader(fh))
+    with open(tmp_path / "r" / "none_links.csv") as fh:
+        links = list(csv.DictReader(fh))
+    assert len(links) == 12 * 6
+    for k, row in enumerate(table):
+        mine = [ln for ln in links if ln["index"] == str(k)]
+        assert [int(ln["trp"]) for ln in mine] == list(range(6))
+        assert int(row["bs_heard"]) == sum(ln["heard"] == "1" for ln in mine)
+        assert int(row["bs_used"]) == sum(ln["used"] == "1" for ln in mine)
+        assert row["bs_excluded"] == ";".join(ln["trp"] for ln in mine if ln["excluded"] == "1") \
+            or len(row["bs_excluded"].split(";")) == sum(ln["excluded"] == "1" for ln in mine)
+        np.testing.assert_allclose([float(ln["distance_m"]) for ln in mine],
+                                   np.linalg.norm(g.bs_pos[g.serving[k]] - g.ue.pos[k], axis=1))

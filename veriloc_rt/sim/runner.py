@@ -48,7 +48,10 @@ from ..config import Config
 from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
+from ..phy.channel import Links
+from ..phy.chain.receiver import reference_trp
 from ..phy.noise import KeptWhiteNoise
+from ..constants import SPEED_OF_LIGHT
 from ..rng import stream
 from ..attacks.adversary import AdversarySignal
 
@@ -327,6 +330,8 @@ class ScenarioRunner:
         row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
                        {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
                        stats={d: st for d, (_, st) in v.items()})
+        row.trps, row.links = trp_links(res, self.roles["standard"].chain, self.prop.bs_ue, i,
+                                        self.geo.ue.pos[i])
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
@@ -341,3 +346,39 @@ class ScenarioRunner:
 
 
 _SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
+
+
+def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
+              ue_pos: np.ndarray) -> tuple[tuple, list]:
+    """What the row and the links CSV say about each TRP of point ``i``.
+
+    Received PRS power: the TRP's transmit power (after power control) times the link's power
+    gain (paths summed, antennas averaged). SNR per RE: that power's share of one PRS RE
+    (``channel.prs_power``) over the noise per RE. ToA error: c toa - the 3-D distance (the
+    receiver's timing reference is the earliest true arrival less a guard, so its ToAs are
+    absolute); RSTD error: ToA error minus the fix reference's (empty for the reference);
+    AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg.
+
+    :returns: ((bs_heard, bs_used, bs_excluded), [per TRP: LINK_COLUMNS after ``index``])
+    """
+    pos = bs_ue.tx_pos[i]
+    dist = np.linalg.norm(pos - ue_pos[None, :], axis=1)
+    rx_w = np.asarray(res.tx_power_w, float) * Links.from_cir(bs_ue, i).power_gain()
+    with np.errstate(divide="ignore"):
+        rx_dbm = 10.0 * np.log10(rx_w) + 30.0
+        per_re = rx_w * chain.bs_power_factor * chain.ofdm.fft_size / chain.ofdm.num_subcarriers
+        snr_db = (10.0 * np.log10(per_re / chain.noise_var) if chain.noise_var > 0
+                  else np.full(len(pos), np.inf))
+    toa_err = np.where(res.detected, SPEED_OF_LIGHT * res.toa_s - dist, np.nan)
+    ref = reference_trp(res.detected, res.peak_snr_db)
+    rstd_err = toa_err - toa_err[ref]
+    rstd_err[ref] = np.nan
+    true_az = np.arctan2(pos[:, 1] - ue_pos[1], pos[:, 0] - ue_pos[0])
+    aoa_err = np.rad2deg(np.angle(np.exp(1j * (np.asarray(res.azimuth, float) - true_az))))
+    fix = res.position
+    used = set(fix.used) if fix.ok else set()
+    excluded = tuple(int(j) for j in fix.excluded)
+    links = [(k, int(bs_ue.tx_index[i, k]), float(dist[k]), float(rx_dbm[k]), float(snr_db[k]),
+              bool(res.detected[k]), float(toa_err[k]), float(rstd_err[k]), float(aoa_err[k]),
+              bool(res.tags_valid[k]), k in used, k in excluded) for k in range(len(pos))]
+    return (int(np.sum(res.detected)), len(used), ";".join(map(str, excluded))), links

@@ -148,7 +148,7 @@ class FixStage:
     def __call__(self, timing: Timing, bs_pos: np.ndarray, ue_height_m: float) -> MultilaterationResult:
         """:param bs_pos: [num_bs, 3] float64, m; ue_height_m: m, the UE's known height"""
         det = timing.detected
-        ref = reference_trp(timing)
+        ref = reference_trp(det, [e.peak_snr_db for e in timing.estimates])
         rstd = timing.rstd_s if ref == 0 else timing.toa_s - timing.toa_s[ref]
         if not self.weighted:
             solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
@@ -180,15 +180,17 @@ def range_std(peak_snr_db: np.ndarray, bandwidth_hz: float, floor_m: float) -> n
     return np.sqrt(crlb + floor_m**2)
 
 
-def reference_trp(timing: Timing) -> int:
+def reference_trp(detected, peak_snr_db) -> int:
     """The RSTD reference: slot 0 (the strongest TRP by the serving order) when it is heard,
     else the heard TRP with the highest correlation-peak SNR (0 when none is heard). With three
-    TRPs a lost slot 0 leaves two, too few for a fix whichever is the reference."""
-    det = np.asarray(timing.detected, bool)
+    TRPs a lost slot 0 leaves two, too few for a fix whichever is the reference.
+
+    :param detected: [num_bs] bool; peak_snr_db: [num_bs] float64, dB
+    """
+    det = np.asarray(detected, bool)
     if det[0] or not det.any():
         return 0
-    snr = np.array([e.peak_snr_db if e.detected else -np.inf for e in timing.estimates])
-    return int(np.argmax(snr))
+    return int(np.argmax(np.where(det, np.asarray(peak_snr_db, dtype=float), -np.inf)))
 
 
 def zenith_from_fix(bs_pos: np.ndarray, fix: MultilaterationResult) -> np.ndarray:

@@ -316,7 +316,7 @@ class Multilaterator:
         ref = int(np.flatnonzero(idx == ref_index)[0])
         rd = SPEED_OF_LIGHT * np.where(np.isfinite(rstd), rstd, 0.0)
         if range_std_m is None:
-            return self._solve(bs[idx], rd[idx], ref)
+            return replace(self._solve(bs[idx], rd[idx], ref), used=tuple(idx.tolist()))
         sig = np.asarray(range_std_m, dtype=float)
         if sig.shape != (bs.shape[0],):
             raise ValueError(f"Argument `range_std_m` must have shape ({bs.shape[0]},), not "
