@@ -212,6 +212,10 @@ TRP_DOC = {
     "bs_used": "TRPs the DL fix used (0 without a fix)",
     "bs_excluded": "TRP slots the integrity test excluded, in exclusion order, `;`-separated "
                    "(empty: none; `receiver.fix_weighting`)",
+    "fix_cov_xx": "the weighted fit's covariance of the fix, xx, m^2 (empty without a fix or "
+                  "with the unweighted fit)",
+    "fix_cov_xy": "its xy entry, m^2",
+    "fix_cov_yy": "its yy entry, m^2",
 }
 
 #: the links CSV's columns
@@ -498,7 +502,8 @@ def outputs_md() -> str:
            "statistic compared with the configured threshold (`inf`: a rule that rejects "
            "whatever the threshold, e.g. no fix).", ""]
     out += _columns_table(CSV_COLUMNS, _results_column)
-    out += ["", "A run with more than three TRPs (`topology.num_trps`) appends:", ""]
+    out += ["", "A run with more than three TRPs (`topology.num_trps`), or with the weighted fit "
+            "(`receiver.fix_weighting`), appends:", ""]
     out += _columns_table(TRP_COLUMNS, lambda c: _describe(TRP_DOC, c, "results CSV column"))
     out += ["", "### `<scenario>_links.csv`", "",
             "One row per point and TRP of the scenario's standard-PRS chain, written with the "

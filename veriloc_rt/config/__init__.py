@@ -98,9 +98,26 @@ class Config:
                                 f"a slot 0..{rep - 1}: each of the {self.nr.num_bs} TRPs "
                                 f"transmits in {rep} of the frame's PRS slots (slot groups, "
                                 "docs/real-cities.md) and its tags are checked in its own")
+        if self.detectors.tracking.measurement_noise == "fix_covariance" and not self.weighted_fix:
+            raise bad_value("detectors.tracking.measurement_noise", "fix_covariance",
+                            "'fixed' unless the fix is weighted (receiver.fix_weighting 'snr', "
+                            "or 'auto' with topology.num_trps > 3): the unweighted fit has no "
+                            "covariance")
         self._validate_receiver()
         self._validate_world()
         self.run.check_trajectory_length(self.trajectory.num_points, "trajectory.num_points")
+
+    @property
+    def weighted_fix(self) -> bool:
+        """The DL fix is the weighted fit with a covariance (``receiver.fix_weighting``)."""
+        w = self.receiver.fix_weighting
+        return w == "snr" or (w == "auto" and self.topology.num_trps > SERVING_BS)
+
+    @property
+    def trp_outputs(self) -> bool:
+        """Rows carry the TRP and fix-covariance columns (more than three TRPs, or the
+        weighted fit): a three-TRP run with the paper's fit keeps the paper's columns."""
+        return self.topology.num_trps > SERVING_BS or self.weighted_fix
 
     def _validate_receiver(self) -> None:
         rx, nr, m = self.receiver, self.nr, self.propagation.ue_array.num_elements

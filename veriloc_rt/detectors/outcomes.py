@@ -49,6 +49,8 @@ class PointRow:
     #: per-TRP rows of the links CSV (``report.results.LINK_COLUMNS`` after ``index``); None:
     #: not recorded
     links: list | None = None
+    #: [2, 2] float64, m^2, the weighted fit's covariance of the fix (None: none)
+    fix_cov: np.ndarray | None = None
 
 
 def outcome_of(fix_ok: bool, error_m: float, threshold_m: float) -> str:

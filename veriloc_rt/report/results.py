@@ -40,9 +40,9 @@ __all__ = ["CSV_COLUMNS", "TRP_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_
 CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
                "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc",
                *STAT_COLUMNS)
-#: columns a run with more than three TRPs (topology.num_trps) appends to each row (a
-#: three-TRP run keeps the paper's columns)
-TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded")
+#: columns a run with more than three TRPs (topology.num_trps) or the weighted fit appends to
+#: each row (a three-TRP run with the paper's fit keeps the paper's columns)
+TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded", "fix_cov_xx", "fix_cov_xy", "fix_cov_yy")
 #: columns of ``<scenario>_links.csv``: one row per point and TRP
 LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
                 "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
@@ -89,7 +89,9 @@ def row_to_fields(r: PointRow) -> list[str]:
 
 def _trp_fields(r: PointRow) -> list[str]:
     heard, used, excluded = r.trps if r.trps is not None else ("", "", "")
-    return [str(heard), str(used), str(excluded)]
+    c = r.fix_cov
+    cov = [_f(c[0, 0]), _f(c[0, 1]), _f(c[1, 1])] if c is not None else ["", "", ""]
+    return [str(heard), str(used), str(excluded)] + cov
 
 
 def fields_to_row(f: dict) -> PointRow:
@@ -104,7 +106,10 @@ def fields_to_row(f: dict) -> PointRow:
         error_m_enc=_p(f["error_m_enc"]) if enc else None, outcome_enc=f["outcome_enc"] or None,
         stats={d: _p(f[c]) for d, c in zip(DETECTORS, STAT_COLUMNS) if f[c] != ""},
         trps=((int(f["bs_heard"]), int(f["bs_used"]), f["bs_excluded"])
-              if f.get("bs_heard", "") != "" else None))
+              if f.get("bs_heard", "") != "" else None),
+        fix_cov=(np.array([[_p(f["fix_cov_xx"]), _p(f["fix_cov_xy"])],
+                           [_p(f["fix_cov_xy"]), _p(f["fix_cov_yy"])]])
+                 if f.get("fix_cov_xx", "") != "" else None))
 
 
 def read_rows(path: str | Path) -> list[PointRow]:

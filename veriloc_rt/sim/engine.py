@@ -276,7 +276,7 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
             runner.replay(done)
             log.info("%s: resuming after %d of %d points", scenario, len(done), n)
         writer = (ResultsWriter(results_path(out, scenario), keep=done,
-                                trps=cfg.topology.num_trps > 3) if out else None)
+                                trps=cfg.trp_outputs) if out else None)
         prev = done[-1].index if done else None
         todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
         ahead = (pool or LocalChains(runner)).imap(scenario, todo)

@@ -194,10 +194,15 @@ class ScenarioRunner:
         self.tracker.reset()
         self._last_valid = None
 
-    def _track(self, est_xy: np.ndarray, dt: float | None) -> tuple[bool, float]:
-        """(valid, stat) of the tracker on the DL fix ``est_xy``."""
+    def _track(self, est_xy: np.ndarray, dt: float | None,
+               cov: np.ndarray | None = None) -> tuple[bool, float]:
+        """(valid, stat) of the tracker on the DL fix ``est_xy`` (``cov``: its covariance,
+        used with ``detectors.tracking.measurement_noise`` 'fix_covariance')."""
         z = est_xy if np.all(np.isfinite(est_xy)) else None
-        v = self.tracker(z, dt)
+        if self.cfg.detectors.tracking.measurement_noise == "fix_covariance" and cov is not None:
+            v = self.tracker(z, dt, cov)
+        else:
+            v = self.tracker(z, dt)
         if v.accepted:
             self._last_valid = v.position.copy()
         return v.valid, v.stat
@@ -207,7 +212,7 @@ class ScenarioRunner:
         self.reset()
         prev = None
         for r in rows:
-            self._track(r.est_xy, self._dt(prev, r.index))
+            self._track(r.est_xy, self._dt(prev, r.index), r.fix_cov)
             prev = r.index
 
     def _dt(self, prev: int | None, i: int) -> float | None:
@@ -325,13 +330,15 @@ class ScenarioRunner:
         t = time.perf_counter()
         ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
         v = point_statistics(self.detectors, res, self.prop.bs_ue.tx_pos[i], ref, ds)
-        v["Tracking"] = self._track(est, self._dt(prev, i))
+        cov = res.position.covariance if res.position.ok else None
+        v["Tracking"] = self._track(est, self._dt(prev, i), cov)
         self.timing["detectors"] += time.perf_counter() - t
         row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
                        {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
                        stats={d: st for d, (_, st) in v.items()})
         row.trps, row.links = trp_links(res, self.roles["standard"].chain, self.prop.bs_ue, i,
                                         self.geo.ue.pos[i])
+        row.fix_cov = cov
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
