@@ -353,8 +353,12 @@ class Multilaterator:
                 rest = [i for i in used if i != j]
                 r2 = ref if j != ref else min(rest, key=lambda i: sig[i])
                 trial = self._weighted(bs, rd, sig, rest, r2)
-                if best is None or trial.chi2 < best[0]:
-                    best = (trial.chi2, j, r2)
+                # a trial without a usable fix explains nothing
+                stat = trial.chi2 if trial.status in (STATUS_OK, STATUS_RESIDUAL) else np.inf
+                if best is None or stat < best[0]:
+                    best = (stat, j, r2)
+            if not np.isfinite(best[0]):
+                break
             _, j, ref = best
             used = [i for i in used if i != j]
             excluded.append(j)
