@@ -216,6 +216,11 @@ TRP_DOC = {
                   "with the unweighted fit)",
     "fix_cov_xy": "its xy entry, m^2",
     "fix_cov_yy": "its yy entry, m^2",
+    "auth_share": "share of the fix's TRPs whose tags verified (empty without a fix or tags): "
+                  "per-anchor authentication",
+    "x_est_auth": "the DL fix from the heard TRPs whose tags verified alone, x, m (empty when "
+                  "fewer than 3 verified or it fails)",
+    "y_est_auth": "its y, m",
 }
 
 #: the links CSV's columns

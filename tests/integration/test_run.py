@@ -93,3 +93,10 @@ def test_run_uma_six_trps(tmp_path):
             or len(row["bs_excluded"].split(";")) == sum(ln["excluded"] == "1" for ln in mine)
         np.testing.assert_allclose([float(ln["distance_m"]) for ln in mine],
                                    np.linalg.norm(g.bs_pos[g.serving[k]] - g.ue.pos[k], axis=1))
+        used = [ln for ln in mine if ln["used"] == "1"]
+        if used:   # per-anchor authentication: the share of the fix's TRPs whose tags verified
+            assert float(row["auth_share"]) == sum(ln["tag_verified"] == "1"
+                                                   for ln in used) / len(used)
+        if row["x_est_auth"] != "" and all(ln["tag_verified"] == "1" for ln in mine
+                                           if ln["heard"] == "1"):
+            assert float(row["x_est_auth"]) == float(row["x_est"])   # the same TRPs, same fix

@@ -51,6 +51,9 @@ class PointRow:
     links: list | None = None
     #: [2, 2] float64, m^2, the weighted fit's covariance of the fix (None: none)
     fix_cov: np.ndarray | None = None
+    #: (share of the fix's TRPs whose tags verified, [2] the fix from the TRPs whose tags
+    #: verified alone, NaN without one); None: not recorded
+    auth: tuple | None = None
 
 
 def outcome_of(fix_ok: bool, error_m: float, threshold_m: float) -> str:

@@ -42,7 +42,8 @@ CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_
                *STAT_COLUMNS)
 #: columns a run with more than three TRPs (topology.num_trps) or the weighted fit appends to
 #: each row (a three-TRP run with the paper's fit keeps the paper's columns)
-TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded", "fix_cov_xx", "fix_cov_xy", "fix_cov_yy")
+TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded", "fix_cov_xx", "fix_cov_xy", "fix_cov_yy",
+               "auth_share", "x_est_auth", "y_est_auth")
 #: columns of ``<scenario>_links.csv``: one row per point and TRP
 LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
                 "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
@@ -91,7 +92,8 @@ def _trp_fields(r: PointRow) -> list[str]:
     heard, used, excluded = r.trps if r.trps is not None else ("", "", "")
     c = r.fix_cov
     cov = [_f(c[0, 0]), _f(c[0, 1]), _f(c[1, 1])] if c is not None else ["", "", ""]
-    return [str(heard), str(used), str(excluded)] + cov
+    share, xy = r.auth if r.auth is not None else (None, (None, None))
+    return [str(heard), str(used), str(excluded)] + cov + [_f(share), _f(xy[0]), _f(xy[1])]
 
 
 def fields_to_row(f: dict) -> PointRow:
@@ -109,7 +111,9 @@ def fields_to_row(f: dict) -> PointRow:
               if f.get("bs_heard", "") != "" else None),
         fix_cov=(np.array([[_p(f["fix_cov_xx"]), _p(f["fix_cov_xy"])],
                            [_p(f["fix_cov_xy"]), _p(f["fix_cov_yy"])]])
-                 if f.get("fix_cov_xx", "") != "" else None))
+                 if f.get("fix_cov_xx", "") != "" else None),
+        auth=((_p(f["auth_share"]), np.array([_p(f["x_est_auth"]), _p(f["y_est_auth"])]))
+              if "auth_share" in f else None))
 
 
 def read_rows(path: str | Path) -> list[PointRow]:

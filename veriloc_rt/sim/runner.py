@@ -339,6 +339,8 @@ class ScenarioRunner:
         row.trps, row.links = trp_links(res, self.roles["standard"].chain, self.prop.bs_ue, i,
                                         self.geo.ue.pos[i])
         row.fix_cov = cov
+        if self.cfg.trp_outputs:
+            row.auth = authenticated_fix(res, self.roles["standard"].chain, self.prop.bs_ue, i)
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
@@ -353,6 +355,25 @@ class ScenarioRunner:
 
 
 _SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
+
+
+def authenticated_fix(res: ChainResult, chain: PositioningChain, bs_ue, i: int
+                      ) -> tuple[float, np.ndarray]:
+    """Per-anchor authentication (the OSNMA idea: authenticate each satellite, fix from the
+    authenticated ones): the share of the DL fix's TRPs whose tags verified (NaN without a fix
+    or without tags), and the fix from the heard TRPs whose tags verified alone ([2] NaN when
+    it fails or no tags were checked), by the chain's own fix stage."""
+    fix = res.position
+    verified = np.asarray(res.detected, bool) & np.asarray(res.tags_valid, bool)
+    used = list(fix.used) if fix.ok else []
+    share = (float(np.mean(verified[used])) if used and res.tags_checked else float("nan"))
+    xy = np.full(2, np.nan)
+    if res.tags_checked and verified.sum() >= 3:
+        auth = chain.fix.solve(verified, res.toa_s, res.peak_snr_db, bs_ue.tx_pos[i],
+                               float(bs_ue.rx_pos[i, 2]))
+        if auth.ok:
+            xy = np.asarray(auth.position[:2], dtype=float)
+    return share, xy
 
 
 def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,

@@ -147,16 +147,26 @@ class FixStage:
 
     def __call__(self, timing: Timing, bs_pos: np.ndarray, ue_height_m: float) -> MultilaterationResult:
         """:param bs_pos: [num_bs, 3] float64, m; ue_height_m: m, the UE's known height"""
-        det = timing.detected
-        ref = reference_trp(det, [e.peak_snr_db for e in timing.estimates])
-        rstd = timing.rstd_s if ref == 0 else timing.toa_s - timing.toa_s[ref]
+        return self.solve(timing.detected, timing.toa_s,
+                          [e.peak_snr_db for e in timing.estimates], bs_pos, ue_height_m)
+
+    def solve(self, detected, toa_s, peak_snr_db, bs_pos: np.ndarray,
+              ue_height_m: float) -> MultilaterationResult:
+        """The fix from the ToAs of the BSs ``detected`` (a subset: the fix from those alone).
+
+        :param detected: [num_bs] bool; toa_s: [num_bs] float64, s; peak_snr_db: [num_bs] dB
+        """
+        det = np.asarray(detected, dtype=bool)
+        toa = np.asarray(toa_s, dtype=float)
+        snr = np.asarray(peak_snr_db, dtype=float)
+        ref = reference_trp(det, snr)
+        rstd = toa - toa[ref]
         if not self.weighted:
             solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
             return solver(bs_pos, np.where(det, rstd, np.nan), ref, det)
         # the weighted fit's check is the chi-square test: the rms check is left wide open
         solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=1e9,
                                 false_alarm=self.false_alarm, exclusion=self.exclusion)
-        snr = np.array([e.peak_snr_db for e in timing.estimates], dtype=float)
         sig = range_std(snr, self.bandwidth_hz, self.floor_m)
         return solver(bs_pos, np.where(det, rstd, np.nan), ref, det, range_std_m=sig)
 
