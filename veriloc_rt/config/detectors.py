@@ -38,6 +38,11 @@ class ABSAConfig:
     missing_estimate: str = param("invalid", "a BS without an AoA estimate makes the point "
                                   "'invalid' or is 'ignore'd", choices=("invalid", "ignore"))
     unchecked_verdict: bool = param(False, "verdict of a point where no BS could be checked")
+    min_pass: int = param(0, "k of a k-of-N rule: the point is valid when at least k TRPs' AoAs "
+                          "are within threshold_deg (the statistic is the k-th smallest "
+                          "deviation; missing_estimate and unchecked_verdict then do not "
+                          "apply: a TRP without an estimate just does not pass); 0: every "
+                          "TRP must pass (the paper's rule)", lo=0, hi=32)
 
 
 @dataclass(frozen=True)
