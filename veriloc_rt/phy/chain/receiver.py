@@ -174,8 +174,10 @@ class FixStage:
 def range_std(peak_snr_db: np.ndarray, bandwidth_hz: float, floor_m: float) -> np.ndarray:
     """Range std of each ToA, m: the CRLB of a delay estimate, var(tau) >= 1 / (8 pi^2 beta^2
     SNR) with beta the rms bandwidth (Kay, Fundamentals of Statistical Signal Processing:
-    Estimation Theory, 1993, eq. 3.41 / example 3.13; Gezici et al., IEEE Signal Processing
-    Magazine 22(4), 2005, eq. 3), for a PRS spectrum flat over B (beta^2 = B^2 / 12), so
+    Estimation Theory, 1993, ch. 3's range estimation; Gezici et al., IEEE Signal Processing
+    Magazine 22(4), 2005: references as recalled, their equation numbers not checked here;
+    tests/unit/phy/test_reference_trp.py checks the formula as written), for a PRS spectrum
+    flat over B (beta^2 = B^2 / 12), so
     sigma_r^2 = 3 c^2 / (2 pi^2 B^2 SNR), plus ``floor_m`` in quadrature. SNR is the
     post-integration SNR, taken from the correlation peak over its noise floor as
     10^(peak_snr_db / 10) - 1 (the peak metric holds the noise's mean once); at least 1e-3.

@@ -337,7 +337,8 @@ class Multilaterator:
         to it) and the one whose removal leaves the least statistic is excluded; then the test
         is repeated (RAIM fault detection and exclusion as in GNSS receivers: Parkinson and
         Axelrad, "Autonomous GPS integrity monitoring using the pseudorange residual",
-        Navigation 35(2), 1988; Brown, "A baseline GPS RAIM scheme", Navigation 39(3), 1992).
+        Navigation 35(2), 1988; Brown, "A baseline GPS RAIM scheme", Navigation 39(3), 1992;
+        references as recalled).
         Without ``exclusion`` only the test is made. A fix that still fails it is a residual
         failure naming the statistic.
         """
