@@ -42,7 +42,8 @@ from veriloc_rt.sim import montecarlo  # noqa: E402
 from veriloc_rt.studies import bench  # noqa: E402
 from veriloc_rt.config import Config, config_schema, config_to_dict  # noqa: E402
 from veriloc_rt.phy.chain import STAGES  # noqa: E402
-from veriloc_rt.report.results import CSV_COLUMNS, scenario_metrics  # noqa: E402
+from veriloc_rt.report.results import (CSV_COLUMNS, LINK_COLUMNS, TRP_COLUMNS,  # noqa: E402
+                                       scenario_metrics)
 from veriloc_rt.detectors.outcomes import DETECTORS, OUTCOMES, PointRow  # noqa: E402
 from veriloc_rt.detectors.statistics import STATISTICS, STAT_COLUMNS  # noqa: E402
 
@@ -203,6 +204,45 @@ RESULTS_DOC = {
     "y_est_enc": "encrypted-PRS fix y, m",
     "error_m_enc": "encrypted-PRS horizontal error, m",
     "outcome_enc": "encrypted-PRS outcome (same three values; empty when not evaluated)",
+}
+
+#: the columns runs with more than three TRPs append to the results CSV
+TRP_DOC = {
+    "bs_heard": "TRPs heard (correlation peak above the hearability threshold)",
+    "bs_used": "TRPs the DL fix used (0 without a fix)",
+    "bs_excluded": "TRP slots the integrity test excluded, in exclusion order, `;`-separated "
+                   "(empty: none; `receiver.fix_weighting`)",
+    "fix_cov_xx": "the weighted fit's covariance of the fix, xx, m^2 (empty without a fix or "
+                  "with the unweighted fit)",
+    "fix_cov_xy": "its xy entry, m^2",
+    "fix_cov_yy": "its yy entry, m^2",
+    "auth_share": "share of the fix's TRPs whose tags verified (empty without a fix or tags): "
+                  "per-anchor authentication",
+    "x_est_auth": "the DL fix from the heard TRPs whose tags verified alone, x, m (empty when "
+                  "fewer than 3 verified or it fails)",
+    "y_est_auth": "its y, m",
+}
+
+#: the links CSV's columns
+LINKS_DOC = {
+    "index": "0-based point index (the results CSV's `index`)",
+    "trp": "the TRP's slot at this point, 0 .. `topology.num_trps` - 1, nearest first; slot 0 "
+           "is the RSTD reference when heard",
+    "bs_id": "the BS's id (its index in the run's BS list; the keys' id)",
+    "distance_m": "3-D distance TRP - UE, m",
+    "rx_power_dbm": "received PRS power: transmit power after power control times the link's "
+                    "power gain (paths summed, antennas averaged), dBm",
+    "snr_re_db": "SNR per PRS RE: that power's share of one RE (`channel.prs_power`) over the "
+                 "noise per RE, dB (`inf` without noise)",
+    "heard": "1 if the TRP was detected",
+    "toa_error_m": "c ToA - distance, m (empty if not heard)",
+    "rstd_error_m": "ToA error minus the fix reference's, m (empty for the reference or if not "
+                    "heard)",
+    "aoa_error_deg": "resolved AoA azimuth minus the true direction, wrapped to (-180, 180], "
+                     "deg (empty without an AoA)",
+    "tag_verified": "1 if every checked tag of the TRP verified",
+    "used": "1 if the DL fix used the TRP",
+    "excluded": "1 if the integrity test excluded the TRP",
 }
 
 #: per-scenario keys of metrics.json (scenario_metrics)
@@ -422,6 +462,9 @@ def outputs_md() -> str:
            "| file | holds |", "| --- | --- |",
            "| `<scenario>_results.csv` | one row per trajectory point, written and flushed as "
            "soon as the point is done (columns below) |",
+           "| `<scenario>_links.csv` | one row per trajectory point and TRP: distance, received "
+           "PRS power, SNR per RE, ToA, RSTD and AoA errors, tag verdict, use in the fix "
+           "(columns below) |",
            "| `metrics.json` | per scenario: outcome shares, correct-decision rates, error "
            "percentiles; timing and memory (keys below) |",
            "| `run.json` | the resolved config (every default filled in), `seed`, `status` "
@@ -467,6 +510,13 @@ def outputs_md() -> str:
            "statistic compared with the configured threshold (`inf`: a rule that rejects "
            "whatever the threshold, e.g. no fix).", ""]
     out += _columns_table(CSV_COLUMNS, _results_column)
+    out += ["", "A run with more than three TRPs (`topology.num_trps`), or with the weighted fit "
+            "(`receiver.fix_weighting`), appends:", ""]
+    out += _columns_table(TRP_COLUMNS, lambda c: _describe(TRP_DOC, c, "results CSV column"))
+    out += ["", "### `<scenario>_links.csv`", "",
+            "One row per point and TRP of the scenario's standard-PRS chain, written with the "
+            "point's row (a resume keeps the rows of the points it keeps):", ""]
+    out += _columns_table(LINK_COLUMNS, lambda c: _describe(LINKS_DOC, c, "links CSV column"))
     out += ["", "### `metrics.json`", "",
             "| key | holds |", "| --- | --- |"]
     out += [f"| `{k}` | {_cell(v)} |" for k, v in METRICS_TOP_DOC.items()]

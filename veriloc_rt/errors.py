@@ -32,6 +32,11 @@ class InputError(ValueError):
         self.problem = str(problem).translate(_ONE_LINE)
         super().__init__(f"{self.field}: {self.problem}")
 
+    def __reduce__(self):
+        # rebuilt from both arguments when a worker process sends it back (the default pickles
+        # only the message, and unpickling then fails in the pool's result thread, which hangs)
+        return (type(self), (self.field, self.problem))
+
 
 def short_repr(value: Any) -> str:
     """``repr(value)`` cut to a readable length (a message quotes the value, not all of it)."""

@@ -3,6 +3,7 @@ external XML scene with a CSV trajectory."""
 
 import json
 
+import numpy as np
 import pytest
 
 from veriloc_rt.cli import main
@@ -57,3 +58,45 @@ def test_run_external_scene_with_csv(tmp_path, monkeypatch):
     # num_buildings: the mini canyon's XML holds all its blocks in one building shape
     assert s["num_points"] == 8 and s["num_buildings"] == 1 and s["num_triangles"] > 100
     assert s["bs_to_ue"]["links_with_path_pct"] > 50
+
+
+def test_run_uma_six_trps(tmp_path):
+    """Six TRPs per point (comb 12 holds six TRPs' PRS and tags): six links per point, each
+    point's six nearest sites, and the chain fixes from them."""
+    from veriloc_rt.config import config_from_dict
+    from veriloc_rt.sim.engine import run
+
+    cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                            "topology": {"num_trps": 6}, "nr": {"comb": 12},
+                            "trajectory": {"num_points": 12}, "run": {"scenarios": ["none"]}})
+    res = run(cfg, tmp_path / "r")
+    g = res.geometry
+    assert g.serving.shape == (12, 6)
+    assert res.propagation.bs_ue.num_tx == 6
+    d = np.linalg.norm(g.bs_pos[g.serving][..., :2] - g.ue.pos[:, None, :2], axis=2)
+    assert np.all(np.diff(d, axis=1) >= -1e-3)        # nearest first, the reference first
+    rows = res.rows["none"]
+    assert sum(r.outcome == "success" for r in rows) >= 6   # a working chain fixes most points
+    # the row's TRP columns and the links CSV agree with each other and with the geometry
+    import csv
+    with open(tmp_path / "r" / "none_results.csv") as fh:
+        table = list(csv.DictReader(fh))
+    with open(tmp_path / "r" / "none_links.csv") as fh:
+        links = list(csv.DictReader(fh))
+    assert len(links) == 12 * 6
+    for k, row in enumerate(table):
+        mine = [ln for ln in links if ln["index"] == str(k)]
+        assert [int(ln["trp"]) for ln in mine] == list(range(6))
+        assert int(row["bs_heard"]) == sum(ln["heard"] == "1" for ln in mine)
+        assert int(row["bs_used"]) == sum(ln["used"] == "1" for ln in mine)
+        assert row["bs_excluded"] == ";".join(ln["trp"] for ln in mine if ln["excluded"] == "1") \
+            or len(row["bs_excluded"].split(";")) == sum(ln["excluded"] == "1" for ln in mine)
+        np.testing.assert_allclose([float(ln["distance_m"]) for ln in mine],
+                                   np.linalg.norm(g.bs_pos[g.serving[k]] - g.ue.pos[k], axis=1))
+        used = [ln for ln in mine if ln["used"] == "1"]
+        if used:   # per-anchor authentication: the share of the fix's TRPs whose tags verified
+            assert float(row["auth_share"]) == sum(ln["tag_verified"] == "1"
+                                                   for ln in used) / len(used)
+        if row["x_est_auth"] != "" and all(ln["tag_verified"] == "1" for ln in mine
+                                           if ln["heard"] == "1"):
+            assert float(row["x_est_auth"]) == float(row["x_est"])   # the same TRPs, same fix

@@ -159,10 +159,19 @@ def test_outputs_page_lists_the_columns_a_run_writes(tmp_path):
     with ResultsWriter(tmp_path / "none_results.csv") as w:
         w.write(row)
     header = (tmp_path / "none_results.csv").read_text().splitlines()[0].split(",")
+    with ResultsWriter(tmp_path / "fbs_results.csv", trps=True) as w:
+        w.write(row)
+    header_trps = (tmp_path / "fbs_results.csv").read_text().splitlines()[0].split(",")
+    links = (tmp_path / "fbs_links.csv").read_text().splitlines()[0].split(",")
     page = gen_docs.outputs_md()
     section = page.split("### `<scenario>_results.csv`")[1].split("###")[0]
-    documented = [cells[1].strip("`") for _, cells in _table_rows(section, r"(\d+)")]
+    plain, extra = section.split("appends:")
+    documented = [cells[1].strip("`") for _, cells in _table_rows(plain, r"(\d+)")]
     assert documented == header
+    documented += [cells[1].strip("`") for _, cells in _table_rows(extra, r"(\d+)")]
+    assert documented == header_trps
+    section = page.split("### `<scenario>_links.csv`")[1].split("###")[0]
+    assert [cells[1].strip("`") for _, cells in _table_rows(section, r"(\d+)")] == links
 
 
 def test_an_undocumented_column_stops_the_generator(monkeypatch):

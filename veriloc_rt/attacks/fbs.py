@@ -178,7 +178,7 @@ def spoofer_replicas(nr: NRConfig, frame: int, replicas, rng: np.random.Generato
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
     security = SecurityConfig(encrypted=(False,) * nr.num_bs, tag_scheme="none")
-    tx = PRSTransmitter(nr, security, list(range(nr.num_bs)))
+    tx = PRSTransmitter(nr, security, list(range(nr.num_bs)), network_tags=network_tags)
     slots = tx.frame_slots(slots)
     layout = ReLayout.from_config(nr, True) if (tag_fill == "random_qpsk" and network_tags) else None
     out = []
@@ -193,6 +193,8 @@ def spoofer_replicas(nr: NRConfig, frame: int, replicas, rng: np.random.Generato
             sym = layout.symbols[:, None]
             bits = rng.integers(0, 2, size=(len(slots),) + k.shape + (2,), dtype=np.uint8)
             grid[:, sym, k] = qpsk(bits.reshape(bits.shape[:-2] + (-1,)))
+            if layout.repetition:   # the imitated TRP's slots only (its slot group)
+                grid[[not layout.transmits(int(bs), s) for s in slots]] = 0.0
         out.append((int(bs), float(delay), grid))
     log.debug("spoofer: %d replicas, frame %d", len(out), frame)
     return out

@@ -31,7 +31,8 @@ from .run import SCENARIOS, RunConfig
 from .security import SecurityConfig
 from .world import SceneConfig, TopologyConfig, TrajectoryConfig
 
-#: BSs that serve every point: the three of the hexagonal cell (world.topology)
+#: BSs that serve every point in the paper: the three of the hexagonal cell (world.topology);
+#: ``topology.num_trps`` sets the number
 SERVING_BS = 3
 
 
@@ -53,20 +54,34 @@ class Config:
     run: RunConfig = section(RunConfig, "scenarios, attack window, outcome threshold, Monte Carlo "
                              "realisations")
 
+    def __post_init__(self) -> None:
+        # per-TRP tuples shorter than topology.num_trps are completed (NRConfig.for_trps; the
+        # encryption flags repeat the last one listed), so a user lists only what differs
+        n = self.topology.num_trps
+        if self.nr.num_bs < n:
+            object.__setattr__(self, "nr", self.nr.for_trps(
+                n, self.security.tag_scheme != "none"))
+        enc = self.security.encrypted
+        if enc and len(enc) < n:
+            object.__setattr__(self, "security", dataclasses.replace(
+                self.security, encrypted=enc + (enc[-1],) * (n - len(enc))))
+
     def validate(self, path: str) -> None:
         """Checks across sections (each section checked its own fields already)."""
-        if self.nr.num_bs != SERVING_BS:
+        n = self.topology.num_trps
+        if self.nr.num_bs != n:
             raise bad_value("nr.comb_offsets", list(self.nr.comb_offsets),
-                            f"{SERVING_BS} offsets, one per serving BS (the hexagonal layout "
-                            f"serves every point from the {SERVING_BS} BSs of its cell)")
+                            f"at most {n} offsets, one per TRP (topology.num_trps; "
+                            "missing ones are derived)")
         if len(self.security.encrypted) != self.nr.num_bs:
             raise bad_value("security.encrypted", list(self.security.encrypted),
-                            f"{self.nr.num_bs} flags, one per serving BS of nr.comb_offsets")
+                            f"at most {n} flags, one per TRP (topology.num_trps; missing ones "
+                            "repeat the last)")
         slots = self.threats.fbs.spoofed_slots
         for i, k in enumerate(slots):
             if not 0 <= k < self.nr.num_bs:
                 raise bad_value(f"threats.fbs.spoofed_slots[{i}]", k,
-                                f"a serving-BS slot 0..{self.nr.num_bs - 1}")
+                                f"a TRP slot 0..{self.nr.num_bs - 1} (topology.num_trps)")
         if len(set(slots)) != len(slots):
             raise bad_value("threats.fbs.spoofed_slots", list(slots), "no repeated slot")
         if self.threats.fbs.mode == "bias" and len(set(slots or range(self.nr.num_bs))) == self.nr.num_bs:
@@ -74,9 +89,35 @@ class Config:
                             "with threats.fbs.mode 'bias', a subset of the serving BSs (a bias on "
                             "every BS is common and cancels in every RSTD)")
 
+        tags = self.security.tag_scheme != "none"
+        self.nr.check_resources(tags)
+        _, rep = self.nr.slot_plan(tags)
+        for i, s in enumerate(self.receiver.tag_slots):
+            if rep < self.nr.slots_per_frame and s >= rep:
+                raise bad_value(f"receiver.tag_slots[{i}]", s,
+                                f"a slot 0..{rep - 1}: each of the {self.nr.num_bs} TRPs "
+                                f"transmits in {rep} of the frame's PRS slots (slot groups, "
+                                "docs/real-cities.md) and its tags are checked in its own")
+        if self.detectors.tracking.measurement_noise == "fix_covariance" and not self.weighted_fix:
+            raise bad_value("detectors.tracking.measurement_noise", "fix_covariance",
+                            "'fixed' unless the fix is weighted (receiver.fix_weighting 'snr', "
+                            "or 'auto' with topology.num_trps > 3): the unweighted fit has no "
+                            "covariance")
         self._validate_receiver()
         self._validate_world()
         self.run.check_trajectory_length(self.trajectory.num_points, "trajectory.num_points")
+
+    @property
+    def weighted_fix(self) -> bool:
+        """The DL fix is the weighted fit with a covariance (``receiver.fix_weighting``)."""
+        w = self.receiver.fix_weighting
+        return w == "snr" or (w == "auto" and self.topology.num_trps > SERVING_BS)
+
+    @property
+    def trp_outputs(self) -> bool:
+        """Rows carry the TRP and fix-covariance columns (more than three TRPs, or the
+        weighted fit): a three-TRP run with the paper's fit keeps the paper's columns."""
+        return self.topology.num_trps > SERVING_BS or self.weighted_fix
 
     def _validate_receiver(self) -> None:
         rx, nr, m = self.receiver, self.nr, self.propagation.ue_array.num_elements

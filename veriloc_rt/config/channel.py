@@ -134,8 +134,27 @@ class ReceiverConfig:
     srs_comb: int = param(4, "SRS transmission comb K_TC", choices=(2, 4, 8))
     srs_symbols: tuple[int, ...] = param((10, 11, 12, 13), "SRS symbols of each slot")
     uplink: bool = param(True, "compute the uplink position (DL-UL handshake)")
-    max_residual_m: float = param(10.0, "multilateration: largest accepted rms range residual",
-                                  lo=0.01, hi=1e4)
+    max_residual_m: float = param(10.0, "multilateration: largest accepted rms range residual "
+                                  "(the unweighted fit's check)", lo=0.01, hi=1e4)
+    fix_weighting: str = param("auto", "multilateration: 'equal' (every ToA the same variance, "
+                               "the paper's fit, checked by max_residual_m), 'snr' (weighted "
+                               "least squares, each ToA's variance from its correlation-peak "
+                               "SNR by the CRLB plus range_std_floor_m; a fix covariance and "
+                               "the chi-square integrity test with fault exclusion replace the "
+                               "rms check), 'auto' ('equal' for 3 TRPs, 'snr' for more)",
+                               choices=("auto", "equal", "snr"))
+    range_std_floor_m: float = param(3.0, "weighted fit: std added (in quadrature) to each "
+                                     "ToA's CRLB range std for what the CRLB leaves out "
+                                     "(multipath, sub-sample interpolation): a stated choice, "
+                                     "a tenth of the range resolution c/B of the 10 MHz PRS",
+                                     lo=0.01, hi=1e3)
+    integrity_false_alarm: float = param(0.01, "weighted fit: size of the chi-square(N - 3) "
+                                         "test of the whitened RSTD residuals (the benign "
+                                         "false-alarm rate it is designed for; a stated "
+                                         "choice)", lo=1e-9, hi=0.5)
+    fault_exclusion: bool = param(True, "weighted fit: exclude the anchor whose removal best "
+                                  "explains a failed test, and re-test, while a degree of "
+                                  "freedom remains (RAIM-style FDE)")
 
     def validate(self, path: str = "receiver") -> None:
         p = f"{path}." if path else ""

@@ -38,6 +38,11 @@ class ABSAConfig:
     missing_estimate: str = param("invalid", "a BS without an AoA estimate makes the point "
                                   "'invalid' or is 'ignore'd", choices=("invalid", "ignore"))
     unchecked_verdict: bool = param(False, "verdict of a point where no BS could be checked")
+    min_pass: int = param(0, "k of a k-of-N rule: the point is valid when at least k TRPs' AoAs "
+                          "are within threshold_deg (the statistic is the k-th smallest "
+                          "deviation; missing_estimate and unchecked_verdict then do not "
+                          "apply: a TRP without an estimate just does not pass); 0: every "
+                          "TRP must pass (the paper's rule)", lo=0, hi=32)
 
 
 @dataclass(frozen=True)
@@ -61,6 +66,11 @@ class TrackingConfig:
                                   "(process noise)", lo=0.0, lo_open=True, hi=100.0)
     meas_std_m: float = param(5.0, "std of each position coordinate of a fix (R = std^2 I)",
                               lo=0.0, lo_open=True, hi=10_000.0)
+    measurement_noise: str = param("fixed", "R of each fix: 'fixed' (meas_std_m^2 I, the "
+                                   "paper's) or 'fix_covariance' (the weighted fit's "
+                                   "covariance of that fix, receiver.fix_weighting; each "
+                                   "variance at least 0.01 m^2)",
+                                   choices=("fixed", "fix_covariance"))
     init_velocity_std_mps: float = param(10.0, "velocity std at track initialisation",
                                          lo=0.0, lo_open=True, hi=1000.0)
     gate_probability: float = param(0.85, "chi-square(2) probability of the NIS gate "

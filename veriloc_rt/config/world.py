@@ -11,7 +11,13 @@ from ..inputs import check_path
 from .fields import param
 
 __all__ = ["BUNDLED_PREFIX", "bundled_scene_names", "bundled_scene_xml", "MAX_DRIVE_M", "MAX_POINTS", "MIN_ANTENNA_HEIGHT_M", "ITU_MATERIAL_RANGES_GHZ", "itu_material_problem", "SceneConfig", "TopologyConfig",
-           "TrajectoryConfig"]
+           "TrajectoryConfig", "MIN_TRPS", "MAX_TRPS", "CELL_BS"]
+
+#: fewest TRPs of a 2-D TDOA fix (two RSTDs for two unknowns) and the BSs of a hexagonal cell
+MIN_TRPS = CELL_BS = 3
+#: most TRPs per point (TR 38.857's InF evaluates 18; the PRS resources of TS 38.211 7.4.1.7
+#: share one grid among up to comb x slots of them)
+MAX_TRPS = 32
 
 #: antennas sit above this height, m: TR 38.901's effective environment height h_E = 1 m (Table
 #: 7.4.1-1 note 1), below which the UMa path loss and its breakpoint distance are undefined
@@ -205,11 +211,34 @@ class TopologyConfig:
                                  lo=0.5, hi=100.0)
     sites: str = param("", "CSV of BS sites with header x,y,z[,azimuth_deg] (m, scene frame; "
                        "z above the ground) replacing the hexagonal layout; each UE point is "
-                       "served by its 3 nearest sites. Empty: the hexagonal layout")
+                       "served by its num_trps nearest sites. Empty: the hexagonal layout")
+    num_trps: int = param(3, "TRPs (BS sites) whose PRS each point measures, slot 0 (the "
+                          "strongest) the RSTD reference; 3 is the paper's serving set, TR 38.857 "
+                          "and TR 38.855 evaluate 12-18", lo=MIN_TRPS, hi=MAX_TRPS)
+    selection: str = param("auto", "which TRPs a point measures: 'power' (the num_trps strongest "
+                           "by median received PRS power: every site transmits the same power "
+                           "from isotropic antennas and TR 38.901's median path loss grows with "
+                           "the 2-D distance at fixed heights, so the num_trps nearest sites; "
+                           "which of them are heard is the receiver's hearability test, "
+                           "receiver.hearability_db), 'cell' (the three BSs of the hexagonal "
+                           "cell holding the point: the paper's serving set; num_trps 3 and the "
+                           "hexagonal layout only), 'auto' ('cell' for num_trps 3 on the "
+                           "hexagonal layout, else 'power')", choices=("auto", "power", "cell"))
+
+    @property
+    def uses_cell(self) -> bool:
+        """The hexagonal cell's three BSs serve each point (else the num_trps nearest sites)."""
+        if self.selection == "auto":
+            return self.num_trps == CELL_BS and not self.sites
+        return self.selection == "cell"
 
     def validate(self, path: str) -> None:
         if self.sites:
             check_path(self.sites, f"{path}.sites")
+        if self.selection == "cell" and (self.num_trps != CELL_BS or self.sites):
+            raise bad_value(f"{path}.selection", self.selection,
+                            f"'power' or 'auto' unless topology.num_trps is {CELL_BS} on the "
+                            "hexagonal layout (a cell has three BSs; a sites CSV has no cells)")
 
 
 @dataclass(frozen=True)

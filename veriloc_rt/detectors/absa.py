@@ -146,6 +146,11 @@ class ABSADetector:
         dev = self.deviation_deg(err)
         th = self.config.threshold_deg
         passed = checked & (np.nan_to_num(dev, nan=np.inf) <= th)
+        k = self.config.min_pass
+        if k:   # k of N: the k-th smallest deviation (inf with fewer than k checked)
+            d = np.sort(dev[checked])
+            stat = float(d[k - 1]) if d.size >= k else math.inf
+            return ABSAVerdict(stat <= th, err, ref, passed, stat)
         if self.config.missing_estimate == "invalid" and not np.all(has_est):
             stat = math.inf
         elif not np.any(checked):

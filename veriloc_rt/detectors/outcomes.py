@@ -28,6 +28,7 @@ class PointRow:
     outcome : str; the ``*_enc`` fields: the same for encrypted PRS (None when not evaluated)
     stats : {detector: float}, each detector's decision statistic
     (:mod:`veriloc_rt.detectors.statistics`; empty when not recorded)
+    trps, links : the TRPs heard, used and excluded, and the per-TRP link rows (below)
     """
 
     index: int
@@ -42,6 +43,17 @@ class PointRow:
     error_m_enc: float | None = None
     outcome_enc: str | None = None
     stats: dict = field(default_factory=dict)
+    #: (bs_heard, bs_used, bs_excluded): TRPs heard, TRPs the fix used (0 without a fix), the
+    #: TRP slots the integrity test excluded ('3;7', '' none); None: not recorded
+    trps: tuple | None = None
+    #: per-TRP rows of the links CSV (``report.results.LINK_COLUMNS`` after ``index``); None:
+    #: not recorded
+    links: list | None = None
+    #: [2, 2] float64, m^2, the weighted fit's covariance of the fix (None: none)
+    fix_cov: np.ndarray | None = None
+    #: (share of the fix's TRPs whose tags verified, [2] the fix from the TRPs whose tags
+    #: verified alone, NaN without one); None: not recorded
+    auth: tuple | None = None
 
 
 def outcome_of(fix_ok: bool, error_m: float, threshold_m: float) -> str:

@@ -150,6 +150,11 @@ class TrackVerdict:
     stat: float = math.nan
 
 
+#: smallest variance of a fix's covariance the tracker takes, m^2 (a weighted fit of many
+#: strong TRPs can claim centimetres, which no street-level drive model follows)
+MIN_R_M2 = 0.01
+
+
 class KalmanTracker:
     """Stateful tracking detector; call once per trajectory point, ``reset()`` between runs.
 
@@ -180,22 +185,32 @@ class KalmanTracker:
         self.x = f @ self.x
         self.P = f @ self.P @ f.T + dwna_process_noise(dt_s, self.config.accel_std_mps2)
 
-    def _update(self, z: np.ndarray, nu: np.ndarray, s: np.ndarray) -> None:
+    def _update(self, z: np.ndarray, nu: np.ndarray, s: np.ndarray, r: np.ndarray) -> None:
         h = np.hstack([np.eye(2), np.zeros((2, 2))])
         k = self.P @ h.T @ np.linalg.inv(s)
         self.x = self.x + k @ nu
         ikh = np.eye(4) - k @ h
-        self.P = ikh @ self.P @ ikh.T + k @ self._r @ k.T  # Joseph form
+        self.P = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form
 
-    def __call__(self, z, dt_s: float | None = None) -> TrackVerdict:
+    def __call__(self, z, dt_s: float | None = None, r=None) -> TrackVerdict:
         """Process one epoch.
 
         :param z: [2] float64, m, the position fix (x, y); None or any NaN: no fix (DoS)
         :param dt_s: time since the previous epoch; None: ``config.dt_s``
+        :param r: [2, 2] float64, m^2, this fix's measurement covariance (None or not finite:
+            ``meas_std_m^2 I``); its eigenvalues are raised to at least :data:`MIN_R_M2`
         """
         dt = self.config.dt_s if dt_s is None else float(dt_s)
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"Argument `dt_s` must be finite and > 0, not {dt_s!r}")
+        rr = self._r
+        if r is not None:
+            r = np.asarray(r, dtype=np.float64)
+            if r.shape != (2, 2):
+                raise ValueError(f"Argument `r` must be [2, 2], not {r.shape}")
+            if np.all(np.isfinite(r)):
+                w, v = np.linalg.eigh(0.5 * (r + r.T))
+                rr = (v * np.maximum(w, MIN_R_M2)) @ v.T
         meas = None
         if z is not None:
             meas = np.asarray(z, dtype=np.float64).reshape(-1)
@@ -210,7 +225,7 @@ class KalmanTracker:
                 return self._verdict(False, math.nan, math.inf)
             v0 = self.config.init_velocity_std_mps ** 2
             self.x = np.array([meas[0], meas[1], 0.0, 0.0])
-            self.P = np.diag([self._r[0, 0], self._r[1, 1], v0, v0])
+            self.P = np.diag([rr[0, 0], rr[1, 1], v0, v0])
             self.mode = MODE_TRACKING
             return self._verdict(True, math.nan, 0.0)
 
@@ -218,13 +233,13 @@ class KalmanTracker:
         nis = math.nan
         if meas is not None:
             nu = meas - self.x[:2]
-            s = self.P[:2, :2] + self._r
+            s = self.P[:2, :2] + rr
             nis = float(nu @ np.linalg.solve(s, nu))
         eps = nis if meas is not None else math.inf
 
         if self.mode == MODE_TRACKING:
             if eps <= self.gate:
-                self._update(meas, nu, s)
+                self._update(meas, nu, s, rr)
                 return self._verdict(True, nis, eps)
             self.mode = MODE_RECOVERY
             self._window = []
@@ -238,7 +253,7 @@ class KalmanTracker:
         mth = sorted(self._window)[m - 1] if len(self._window) >= m else math.inf
         stat = max(eps, mth)
         if stat <= self.gate:
-            self._update(meas, nu, s)
+            self._update(meas, nu, s, rr)
             self.mode = MODE_TRACKING
             self._window = []
             log.debug("tracking: re-accepted (nis %.3g)", nis)

@@ -64,6 +64,8 @@ def prs_replica(layout: ReLayout, bs: int, setup: BSSetup, frame: int, slots: Se
         bits = bits ^ keystream_bits_many(aes_key, setup.bs_id, frame, pairs, 2 * n)
     r = qpsk(bits).reshape(len(slots), len(layout.symbols), n)
     grid[:, np.asarray(layout.symbols)[:, None], k] = r
+    if layout.repetition:   # slot groups: nothing in the other groups' slots (ReLayout)
+        grid[[not layout.transmits(bs, s) for s in slots]] = 0.0
     return grid
 
 
@@ -74,15 +76,17 @@ class PRSTransmitter:
     :param security: encryption flags, tag scheme and LDPC settings
     :param bs_ids: identity of the BS at each serving position
     :param keys: key set by BS id (BS side, with signing keys); needed for encryption and tags
+    :param network_tags: whether the network sends tags (sets the TRPs' slot groups,
+        :meth:`~veriloc_rt.phy.nr.grid.ReLayout.from_config`); None: this transmitter's own
     """
 
     def __init__(self, nr: NRConfig, security: SecurityConfig, bs_ids: Sequence[int],
-                 keys: Mapping[int, BSKeys] | None = None):
+                 keys: Mapping[int, BSKeys] | None = None, network_tags: bool | None = None):
         nr.validate()
         security.validate()
         self.nr, self.security = nr, security
         self.tags = security.tag_scheme != "none"
-        self.layout = ReLayout.from_config(nr, self.tags)
+        self.layout = ReLayout.from_config(nr, self.tags, network_tags)
         self.setups = serving_setup(nr, security, bs_ids)
         needs_keys = self.tags or any(s.prs.encrypted for s in self.setups)
         if needs_keys:
@@ -163,6 +167,8 @@ class PRSTransmitter:
             grids = np.zeros((self.num_bs, n, SYMBOLS_PER_SLOT, lay.num_subcarriers), dtype=bool)
             for bs in range(self.num_bs):
                 rep = np.broadcast_to(lay.prs_mask(bs), grids.shape[1:]).copy()
+                on = np.array([lay.transmits(bs, s) for s in slots], dtype=bool)
+                rep[~on] = False
                 rep.flags.writeable = False
                 reps.append(rep)
                 grids[bs] = rep
@@ -170,7 +176,8 @@ class PRSTransmitter:
                     used = np.zeros(lay.num_symbols * lay.res_per_symbol, dtype=bool)
                     used[:self.modem.copy_index.size] = True
                     k = lay.tag_subcarriers(bs)
-                    grids[bs][tagged[:, None, None], lay.symbols[:, None], k] = used.reshape(k.shape)
+                    mine = tagged[on[tagged]]
+                    grids[bs][mine[:, None, None], lay.symbols[:, None], k] = used.reshape(k.shape)
             grids.flags.writeable = False
             self._occupied[key] = (grids, tuple(reps))
         return self._occupied[key]
@@ -226,8 +233,11 @@ class PRSTransmitter:
         sym = self.layout.symbols[:, None]
         for bs in range(self.num_bs):
             k = self.layout.tag_subcarriers(bs)
-            x = self.tag_symbols_of_slots(bs, frame, [slots[i] for i in tagged])
-            for i, xi in zip(tagged, x):
+            mine = [i for i in tagged if self.layout.transmits(bs, slots[i])]
+            if not mine:
+                continue
+            x = self.tag_symbols_of_slots(bs, frame, [slots[i] for i in mine])
+            for i, xi in zip(mine, x):
                 grids[bs, i, sym, k] = xi.reshape(k.shape)
 
     def waveform(self, frame: int, slots: Sequence[int] | None = None) -> np.ndarray:

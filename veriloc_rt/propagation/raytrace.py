@@ -2,7 +2,7 @@
 
 Links traced (and nothing else):
 
-* serving BS -> UE, per trajectory point and serving slot (3 per point);
+* serving BS -> UE, per trajectory point and serving slot (topology.num_trps per point);
 * serving BS -> adversary (what a meaconer receives), per point;
 * adversary -> UE, per point.
 
@@ -95,8 +95,8 @@ def deterministic_rays(fid: RayTracingConfig) -> bool:
 class Propagation:
     """Every link of a run.
 
-    bs_ue : CIR [num_points, 3] serving BS -> UE at the UE's ULA (slot 0 is the RSTD reference)
-    bs_adv : CIR [num_points, 3] the same BSs -> the adversary (single antenna)
+    bs_ue : CIR [num_points, num_trps] serving BS -> UE at the UE's ULA (slot 0 is the RSTD reference)
+    bs_adv : CIR [num_points, num_trps] the same BSs -> the adversary (single antenna)
     adv_ue : CIR [num_points, 1] adversary -> UE at the UE's ULA
     """
 
@@ -424,9 +424,9 @@ def _scatter(raw: RawPaths, idx: np.ndarray, n: int) -> RawPaths:
     return RawPaths(**out)
 
 
-def _slots(points: np.ndarray) -> np.ndarray:
-    """Rows of the three serving links of each of ``points`` in a [num_points * 3] array."""
-    return np.repeat(points, 3) * 3 + np.tile(np.arange(3), len(points))
+def _slots(points: np.ndarray, t: int) -> np.ndarray:
+    """Rows of the ``t`` serving links of each of ``points`` in a [num_points * t] array."""
+    return np.repeat(points, t) * t + np.tile(np.arange(t), len(points))
 
 
 def _take(raw: RawPaths, idx: np.ndarray) -> RawPaths:
@@ -524,8 +524,9 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     arr = cfg.ue_array
     elem = ula_element_positions(arr.num_elements, arr.spacing_wavelengths * lam,
                                  np.deg2rad(arr.axis_azimuth_deg))
-    bs_tx = bs_pos[serving]                      # [P, 3, 3]
-    zeros_v = np.zeros((P, 3, 3))
+    bs_tx = bs_pos[serving]                      # [P, T, 3], T TRPs per point
+    T = serving.shape[1]
+    zeros_v = np.zeros(bs_tx.shape)
     # one planning pass over all links so progress covers the whole job
     active = np.ones(P, bool) if adversary_points is None else np.asarray(adversary_points, bool)
     if active.shape != (P,):
@@ -537,10 +538,10 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     on = np.flatnonzero(ue_on)
     # every link in one pass: a source's calls hold all its targets (the adversary stands where
     # the UE stood, so its BS links share the UE's sources)
-    k, n, m = 3 * len(on), 3 * P, 3 * len(act)
+    k, n, m = T * len(on), T * P, T * len(act)
     tx_links = np.concatenate([bs_tx[on].reshape(-1, 3), bs_tx[act].reshape(-1, 3), adv.pos[act]])
-    rx_links = np.concatenate([np.repeat(ue.pos[on], 3, axis=0),
-                               np.repeat(adv.pos[act], 3, axis=0), ue.pos[act]])
+    rx_links = np.concatenate([np.repeat(ue.pos[on], T, axis=0),
+                               np.repeat(adv.pos[act], T, axis=0), ue.pos[act]])
     total = len(tx_links)
     cb = (lambda done, _n: progress(done, total)) if progress else None
     t0 = time.perf_counter()
@@ -548,13 +549,13 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     # antenna polarizations in the physical direction (receiver port, transmitter port)
     pol = fid.polarization
     bs_p, ue_p, adv_p = pol.bs, pol.ue, pol.adversary_polarization()
-    raw_bs_ue = _scatter(_take(raw, np.arange(k)).project(ue_p, bs_p), _slots(on), n)
-    raw_bs_adv = _scatter(_take(raw, np.arange(k, k + m)).project(adv_p, bs_p), _slots(act), n)
+    raw_bs_ue = _scatter(_take(raw, np.arange(k)).project(ue_p, bs_p), _slots(on, T), n)
+    raw_bs_adv = _scatter(_take(raw, np.arange(k, k + m)).project(adv_p, bs_p), _slots(act, T), n)
     raw_adv = _scatter(_take(raw, np.arange(k + m, total)).project(ue_p, adv_p), act, P)
     mp = fid.max_paths_per_link
     adv_slot = np.where(active[:, None], serving, NO_TX)
-    bs_ue = build_cir(raw_bs_ue, (P, 3), serving, bs_tx, ue.pos, zeros_v, ue.vel, fc, elem, mp)
-    bs_adv = build_cir(raw_bs_adv, (P, 3), adv_slot, bs_tx, adv.pos, zeros_v, adv.vel, fc, None, mp)
+    bs_ue = build_cir(raw_bs_ue, (P, T), serving, bs_tx, ue.pos, zeros_v, ue.vel, fc, elem, mp)
+    bs_adv = build_cir(raw_bs_adv, (P, T), adv_slot, bs_tx, adv.pos, zeros_v, adv.vel, fc, None, mp)
     adv_ue = build_cir(raw_adv, (P, 1), np.where(active, ADVERSARY_TX, NO_TX)[:, None],
                        adv.pos[:, None, :], ue.pos, adv.vel[:, None, :], ue.vel, fc, elem, mp)
     stats = dict(tracer.stats, wall_s=time.perf_counter() - t0, links=total, bs_links=n + m,

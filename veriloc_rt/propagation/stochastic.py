@@ -66,8 +66,8 @@ def stochastic_propagation(geometry, cfg: PropagationConfig, seed: int,
     elem = ula_element_positions(arr.num_elements, arr.spacing_wavelengths * lam,
                                  np.deg2rad(arr.axis_azimuth_deg))
     active = np.ones(P, bool) if adversary_points is None else np.asarray(adversary_points, bool)
-    bs_tx = bs_pos[serving]
-    zeros = np.zeros((P, 3, 3))
+    bs_tx = bs_pos[serving]                       # [P, num_trps, 3]
+    zeros = np.zeros(bs_tx.shape)
     mode = cfg.uma_mode
     bs_ue = uma_cir(bs_tx, ue.pos, ue.vel, zeros, serving, fc, elem,
                     stream(seed, model, 0), mode, scenario=model)
@@ -82,8 +82,10 @@ def stochastic_propagation(geometry, cfg: PropagationConfig, seed: int,
               "nlos": cfg.stochastic_pathloss_offset_nlos_db}
     if any(offset.values()):
         bs_ue = offset_pathloss(bs_ue, offset)
+    n_trps = serving.shape[1]
     stats = {"model": f"{model}/{mode}", "wall_s": time.perf_counter() - t0, "calls": 0,
-             "cache_hits": 0, "trace_s": 0.0, "links": int(3 * P + 4 * active.sum())}
+             "cache_hits": 0, "trace_s": 0.0,
+             "links": int(n_trps * P + (n_trps + 1) * active.sum())}
     return Propagation(bs_ue=bs_ue, bs_adv=bs_adv, adv_ue=adv_ue, stats=stats)
 
 

@@ -25,8 +25,8 @@ from .results import CSV_COLUMNS
 log = logging.getLogger(__name__)
 
 COLUMNS = CSV_COLUMNS
-STR_COLUMNS = ("outcome", "outcome_enc")
-INT_COLUMNS = ("index",)
+STR_COLUMNS = ("outcome", "outcome_enc", "bs_excluded")
+INT_COLUMNS = ("index", "bs_heard", "bs_used")
 
 _SCENARIO_LABELS = {"none": "No Attack", "fbs": "FBS", "meaconing": "Meaconing",
                     "jamming": "Jamming"}

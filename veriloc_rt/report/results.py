@@ -35,16 +35,28 @@ from ..detectors.outcomes import DETECTORS, OUTCOMES, PointRow
 from ..detectors.statistics import STAT_COLUMNS
 from ..errors import short_repr
 
-__all__ = ["CSV_COLUMNS", "ResultsWriter", "read_rows", "parse_rows", "scenario_metrics",
-           "results_path"]
+__all__ = ["CSV_COLUMNS", "TRP_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
+           "parse_rows", "scenario_metrics", "results_path", "links_path"]
 
 CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
                "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc",
                *STAT_COLUMNS)
+#: columns a run with more than three TRPs (topology.num_trps) or the weighted fit appends to
+#: each row (a three-TRP run with the paper's fit keeps the paper's columns)
+TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded", "fix_cov_xx", "fix_cov_xy", "fix_cov_yy",
+               "auth_share", "x_est_auth", "y_est_auth")
+#: columns of ``<scenario>_links.csv``: one row per point and TRP
+LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
+                "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
+                "excluded")
 
 
 def results_path(out_dir: str | Path, scenario: str) -> Path:
     return Path(out_dir) / f"{scenario}_results.csv"
+
+
+def links_path(out_dir: str | Path, scenario: str) -> Path:
+    return Path(out_dir) / f"{scenario}_links.csv"
 
 
 def _f(x) -> str:
@@ -53,6 +65,15 @@ def _f(x) -> str:
         return ""
     x = float(x)
     return "" if math.isnan(x) else repr(x)
+
+
+def _cell(v) -> str:
+    """A links-CSV cell: floats as :func:`_f`, booleans as 0/1, the rest as text."""
+    if isinstance(v, (bool, np.bool_)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return _f(v)
+    return str(v)
 
 
 def _p(text: str) -> float:
@@ -68,6 +89,14 @@ def row_to_fields(r: PointRow) -> list[str]:
             + [_f(r.stats.get(d)) for d in DETECTORS])
 
 
+def _trp_fields(r: PointRow) -> list[str]:
+    heard, used, excluded = r.trps if r.trps is not None else ("", "", "")
+    c = r.fix_cov
+    cov = [_f(c[0, 0]), _f(c[0, 1]), _f(c[1, 1])] if c is not None else ["", "", ""]
+    share, xy = r.auth if r.auth is not None else (None, (None, None))
+    return [str(heard), str(used), str(excluded)] + cov + [_f(share), _f(xy[0]), _f(xy[1])]
+
+
 def fields_to_row(f: dict) -> PointRow:
     enc = f["outcome_enc"] != ""
     return PointRow(
@@ -78,7 +107,14 @@ def fields_to_row(f: dict) -> PointRow:
         outcome=f["outcome"],
         est_xy_enc=np.array([_p(f["x_est_enc"]), _p(f["y_est_enc"])]) if enc else None,
         error_m_enc=_p(f["error_m_enc"]) if enc else None, outcome_enc=f["outcome_enc"] or None,
-        stats={d: _p(f[c]) for d, c in zip(DETECTORS, STAT_COLUMNS) if f[c] != ""})
+        stats={d: _p(f[c]) for d, c in zip(DETECTORS, STAT_COLUMNS) if f[c] != ""},
+        trps=((int(f["bs_heard"]), int(f["bs_used"]), f["bs_excluded"])
+              if f.get("bs_heard", "") != "" else None),
+        fix_cov=(np.array([[_p(f["fix_cov_xx"]), _p(f["fix_cov_xy"])],
+                           [_p(f["fix_cov_xy"]), _p(f["fix_cov_yy"])]])
+                 if f.get("fix_cov_xx", "") != "" else None),
+        auth=((_p(f["auth_share"]), np.array([_p(f["x_est_auth"]), _p(f["y_est_auth"])]))
+              if "auth_share" in f else None))
 
 
 def read_rows(path: str | Path) -> list[PointRow]:
@@ -98,14 +134,14 @@ def parse_rows(text: str, path: str | Path = "results CSV") -> list[PointRow]:
         text = text[: text.rfind("\n") + 1]
     reader = csv.DictReader(io.StringIO(text, newline=""))
     try:
-        if tuple(reader.fieldnames or ()) != CSV_COLUMNS:
+        if tuple(reader.fieldnames or ()) not in (CSV_COLUMNS, CSV_COLUMNS + TRP_COLUMNS):
             raise ValueError(f"header {short_repr(reader.fieldnames)} is not the results "
                              "CSV's")
         rows = []
         for f in reader:
             if None in f or None in f.values():
                 raise ValueError(f"line {reader.line_num}: {len(f) - (None in f)} fields "
-                                 f"(of {len(CSV_COLUMNS)})")
+                                 f"(of {len(reader.fieldnames)})")
             try:
                 rows.append(fields_to_row(f))
             except (ValueError, KeyError) as exc:
@@ -115,40 +151,76 @@ def parse_rows(text: str, path: str | Path = "results CSV") -> list[PointRow]:
     return rows
 
 
+def _kept_lines(path: Path, indices: set[int]) -> list[list[str]]:
+    """The complete rows of an existing CSV whose first field (the point index) is in
+    ``indices`` (a torn last line dropped); [] without the file."""
+    if not path.exists():
+        return []
+    # the run folder's checks refused a file that is not regular before the run began; a
+    # damaged byte only costs the line it is in (the links are a by-product of the rows)
+    text = path.read_text(encoding="utf-8", errors="replace")
+    if not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+    rows = list(csv.reader(io.StringIO(text)))[1:]
+    return [f for f in rows if f and f[0].isdigit() and int(f[0]) in indices]
+
+
 class ResultsWriter:
-    """Appends rows to a scenario's CSV, one flushed line per point.
+    """Appends rows to a scenario's CSV, one flushed line per point, and each row's per-TRP
+    links to ``<scenario>_links.csv`` beside it.
 
     :param keep: rows already on disk to keep (resume); the file is rewritten with exactly these
-        first, which also drops a torn last line
+        first, which also drops a torn last line (the links file keeps these points' lines)
+    :param trps: append :data:`TRP_COLUMNS` to every row (runs with more than three TRPs)
     """
 
-    def __init__(self, path: str | Path, keep: list[PointRow] | None = None):
+    def __init__(self, path: str | Path, keep: list[PointRow] | None = None, trps: bool = False):
         self.path = Path(path)
+        self.trps = bool(trps)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.links_path = self.path.with_name(self.path.name.replace("_results.csv", "_links.csv"))
+        old_links = _kept_lines(self.links_path, {r.index for r in keep or ()})
         with atomic_output(self.path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
-            w.writerow(CSV_COLUMNS)
+            w.writerow(CSV_COLUMNS + (TRP_COLUMNS if self.trps else ()))
             for r in keep or ():
-                w.writerow(row_to_fields(r))
+                w.writerow(self._fields(r))
+        with atomic_output(self.links_path) as tmp, open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(LINK_COLUMNS)
+            w.writerows(old_links)
         with naming(self.path):
             self._fh = open(self.path, "a", newline="")
         self._w = csv.writer(self._fh, lineterminator="\n")
+        with naming(self.links_path):
+            self._lh = open(self.links_path, "a", newline="")
+        self._lw = csv.writer(self._lh, lineterminator="\n")
+
+    def _fields(self, r: PointRow) -> list[str]:
+        return row_to_fields(r) + (_trp_fields(r) if self.trps else [])
 
     def write(self, row: PointRow) -> None:
-        """Append ``row`` (flushed). A failed write (a full disk) leaves the file's complete
-        lines as they were and raises :class:`OSError` naming the file."""
+        """Append ``row`` and its per-TRP links (flushed). A failed write (a full disk) leaves
+        the files' complete lines as they were and raises :class:`OSError` naming the file."""
+        # the links first: a stop between the two leaves a point's links without its row,
+        # which a resume drops (it keeps the links of the rows it keeps)
+        with naming(self.links_path):
+            for link in row.links or ():
+                self._lw.writerow([str(row.index)] + [_cell(v) for v in link])
+            self._lh.flush()
         with naming(self.path):
-            self._w.writerow(row_to_fields(row))
+            self._w.writerow(self._fields(row))
             self._fh.flush()
 
     def close(self) -> None:
-        """Close the file; what a failed write left unflushed is dropped (a torn line would be
+        """Close the files; what a failed write left unflushed is dropped (a torn line would be
         dropped by :func:`read_rows` anyway)."""
-        try:
-            self._fh.close()
-        except OSError:
-            if not self._fh.closed:
-                raise
+        for fh in (self._lh, self._fh):
+            try:
+                fh.close()
+            except OSError:
+                if not fh.closed:
+                    raise
 
     def __enter__(self):
         return self

@@ -292,7 +292,8 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
         if done:
             runner.replay(done)
             log.info("%s: resuming after %d of %d points", scenario, len(done), n)
-        writer = ResultsWriter(results_path(out, scenario), keep=done) if out else None
+        writer = (ResultsWriter(results_path(out, scenario), keep=done,
+                                trps=cfg.trp_outputs) if out else None)
         prev = done[-1].index if done else None
         todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
         ahead = (pool or LocalChains(runner)).imap(scenario, todo)

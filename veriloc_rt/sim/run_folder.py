@@ -54,7 +54,7 @@ RUN_FILES = ("run.json", "metrics.json", "propagation_summary.json", CHAIN_FILE,
              "detection_rates.png", "scene_top_view.png", "montecarlo.csv",
              "montecarlo_detection_rates.png", "roc.csv", "roc.png",
              *(f"{s}_{kind}" for s in SCENARIOS
-               for kind in ("results.csv", "timeseries.png", "map.png")))
+               for kind in ("results.csv", "links.csv", "timeseries.png", "map.png")))
 
 #: distributions whose versions ``run.json`` records
 VERSIONED = ("veriloc-rt", "sionna-rt", "mitsuba", "drjit", "numpy", "scipy", "trimesh",

@@ -48,7 +48,10 @@ from ..config import Config
 from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
+from ..phy.channel import Links
+from ..phy.chain.receiver import reference_trp
 from ..phy.noise import KeptWhiteNoise
+from ..constants import SPEED_OF_LIGHT
 from ..rng import stream
 from ..attacks.adversary import AdversarySignal
 
@@ -191,10 +194,15 @@ class ScenarioRunner:
         self.tracker.reset()
         self._last_valid = None
 
-    def _track(self, est_xy: np.ndarray, dt: float | None) -> tuple[bool, float]:
-        """(valid, stat) of the tracker on the DL fix ``est_xy``."""
+    def _track(self, est_xy: np.ndarray, dt: float | None,
+               cov: np.ndarray | None = None) -> tuple[bool, float]:
+        """(valid, stat) of the tracker on the DL fix ``est_xy`` (``cov``: its covariance,
+        used with ``detectors.tracking.measurement_noise`` 'fix_covariance')."""
         z = est_xy if np.all(np.isfinite(est_xy)) else None
-        v = self.tracker(z, dt)
+        if self.cfg.detectors.tracking.measurement_noise == "fix_covariance" and cov is not None:
+            v = self.tracker(z, dt, cov)
+        else:
+            v = self.tracker(z, dt)
         if v.accepted:
             self._last_valid = v.position.copy()
         return v.valid, v.stat
@@ -204,7 +212,7 @@ class ScenarioRunner:
         self.reset()
         prev = None
         for r in rows:
-            self._track(r.est_xy, self._dt(prev, r.index))
+            self._track(r.est_xy, self._dt(prev, r.index), r.fix_cov)
             prev = r.index
 
     def _dt(self, prev: int | None, i: int) -> float | None:
@@ -322,11 +330,17 @@ class ScenarioRunner:
         t = time.perf_counter()
         ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
         v = point_statistics(self.detectors, res, self.prop.bs_ue.tx_pos[i], ref, ds)
-        v["Tracking"] = self._track(est, self._dt(prev, i))
+        cov = res.position.covariance if res.position.ok else None
+        v["Tracking"] = self._track(est, self._dt(prev, i), cov)
         self.timing["detectors"] += time.perf_counter() - t
         row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
                        {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
                        stats={d: st for d, (_, st) in v.items()})
+        row.trps, row.links = trp_links(res, self.roles["standard"].chain, self.prop.bs_ue, i,
+                                        self.geo.ue.pos[i])
+        row.fix_cov = cov
+        if self.cfg.trp_outputs:
+            row.auth = authenticated_fix(res, self.roles["standard"].chain, self.prop.bs_ue, i)
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
@@ -341,3 +355,58 @@ class ScenarioRunner:
 
 
 _SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
+
+
+def authenticated_fix(res: ChainResult, chain: PositioningChain, bs_ue, i: int
+                      ) -> tuple[float, np.ndarray]:
+    """Per-anchor authentication (the OSNMA idea: authenticate each satellite, fix from the
+    authenticated ones): the share of the DL fix's TRPs whose tags verified (NaN without a fix
+    or without tags), and the fix from the heard TRPs whose tags verified alone ([2] NaN when
+    it fails or no tags were checked), by the chain's own fix stage."""
+    fix = res.position
+    verified = np.asarray(res.detected, bool) & np.asarray(res.tags_valid, bool)
+    used = list(fix.used) if fix.ok else []
+    share = (float(np.mean(verified[used])) if used and res.tags_checked else float("nan"))
+    xy = np.full(2, np.nan)
+    if res.tags_checked and verified.sum() >= 3:
+        auth = chain.fix.solve(verified, res.toa_s, res.peak_snr_db, bs_ue.tx_pos[i],
+                               float(bs_ue.rx_pos[i, 2]))
+        if auth.ok:
+            xy = np.asarray(auth.position[:2], dtype=float)
+    return share, xy
+
+
+def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
+              ue_pos: np.ndarray) -> tuple[tuple, list]:
+    """What the row and the links CSV say about each TRP of point ``i``.
+
+    Received PRS power: the TRP's transmit power (after power control) times the link's power
+    gain (paths summed, antennas averaged). SNR per RE: that power's share of one PRS RE
+    (``channel.prs_power``) over the noise per RE. ToA error: c toa - the 3-D distance (the
+    receiver's timing reference is the earliest true arrival less a guard, so its ToAs are
+    absolute); RSTD error: ToA error minus the fix reference's (empty for the reference);
+    AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg.
+
+    :returns: ((bs_heard, bs_used, bs_excluded), [per TRP: LINK_COLUMNS after ``index``])
+    """
+    pos = bs_ue.tx_pos[i]
+    dist = np.linalg.norm(pos - ue_pos[None, :], axis=1)
+    rx_w = np.asarray(res.tx_power_w, float) * Links.from_cir(bs_ue, i).power_gain()
+    with np.errstate(divide="ignore"):
+        rx_dbm = 10.0 * np.log10(rx_w) + 30.0
+        per_re = rx_w * chain.bs_power_factor * chain.ofdm.fft_size / chain.ofdm.num_subcarriers
+        snr_db = (10.0 * np.log10(per_re / chain.noise_var) if chain.noise_var > 0
+                  else np.full(len(pos), np.inf))
+    toa_err = np.where(res.detected, SPEED_OF_LIGHT * res.toa_s - dist, np.nan)
+    ref = reference_trp(res.detected, res.peak_snr_db)
+    rstd_err = toa_err - toa_err[ref]
+    rstd_err[ref] = np.nan
+    true_az = np.arctan2(pos[:, 1] - ue_pos[1], pos[:, 0] - ue_pos[0])
+    aoa_err = np.rad2deg(np.angle(np.exp(1j * (np.asarray(res.azimuth, float) - true_az))))
+    fix = res.position
+    used = set(fix.used) if fix.ok else set()
+    excluded = tuple(int(j) for j in fix.excluded)
+    links = [(k, int(bs_ue.tx_index[i, k]), float(dist[k]), float(rx_dbm[k]), float(snr_db[k]),
+              bool(res.detected[k]), float(toa_err[k]), float(rstd_err[k]), float(aoa_err[k]),
+              bool(res.tags_valid[k]), k in used, k in excluded) for k in range(len(pos))]
+    return (int(np.sum(res.detected)), len(used), ";".join(map(str, excluded))), links

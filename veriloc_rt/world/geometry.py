@@ -33,7 +33,7 @@ class Geometry:
     """Scene and positions of one run.
 
     bs_pos : [num_bs, 3] float64, m (every BS that serves the UE at some point)
-    serving : [num_points, 3] int64, ids into ``bs_pos``; the first is the RSTD reference
+    serving : [num_points, num_trps] int64, ids into ``bs_pos``; the first is the RSTD reference
     """
 
     scene_xml: Path
@@ -131,21 +131,24 @@ def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
 
 
 def _place_bs(cfg: Config, scene, ue: Trajectory):
-    """BS positions and serving sets: a sites CSV (nearest three serve), or the hexagonal
-    layout (the cell's three serve) at a fixed height or moved onto the nearest roofs.
+    """BS positions and serving sets: a sites CSV (the num_trps nearest serve), or the
+    hexagonal layout (the cell's three, or the num_trps nearest sites, serve) at a fixed height
+    or moved onto the nearest roofs.
 
-    :returns: (layout or None, bs_pos [num_bs, 3] m, serving [num_points, 3], azimuths or None)
+    :returns: (layout or None, bs_pos [num_bs, 3] m, serving [num_points, num_trps], azimuths
+        or None)
     :raises InputError: if a BS stands inside a building or off the scene
     """
     topo = cfg.topology
     xy = ue.pos[:, :2]
     if topo.sites:
         sites, az = load_sites(topo.sites)
-        bs_pos, serving, used = nearest_serving(sites, xy)
+        bs_pos, serving, used = nearest_serving(sites, xy, topo.num_trps)
         _check_bs(scene, bs_pos, topo.sites, [f"site {u + 1}" for u in used])
         return None, bs_pos, serving, az[used]
     layout = hex_layout(topo, stream(cfg.seed, "topology", topo.iteration))
-    bs_pos, serving = layout.serving(xy)
+    bs_pos, serving = (layout.serving(xy) if topo.uses_cell
+                       else layout.nearest(xy, topo.num_trps))
     rooftop = topo.placement == "rooftop" or (topo.placement == "auto"
                                               and isinstance(scene, MeshScene))
     if rooftop:

@@ -27,7 +27,7 @@ ROOF_EDGE_M = 2.0
 _PROBE_Z_M = 1.0
 #: largest sites CSV read, bytes
 MAX_SITES_BYTES = 1 << 20
-#: serving BSs per point
+#: fewest sites a CSV must hold (a 2-D TDOA fix needs three TRPs)
 SERVING = 3
 
 
@@ -98,20 +98,25 @@ def _first_duplicate(p: np.ndarray) -> tuple[int, int] | None:
     return None
 
 
-def nearest_serving(sites: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The :data:`SERVING` nearest sites (horizontal distance, ties by file order) serve each
-    point, nearest first; BS ids in order of first use, as the hexagonal layout numbers them.
+def nearest_serving(sites: np.ndarray, xy: np.ndarray, n: int = SERVING
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``n`` nearest sites (horizontal distance, ties by file order) serve each point,
+    nearest first; BS ids in order of first use, as the hexagonal layout numbers them.
 
     :param sites: [num_sites, 3] float64, m; xy: [num_points, 2] float64, m
-    :returns: (bs_pos [num_bs, 3] float64 m, serving [num_points, 3] int64 ids into bs_pos,
+    :returns: (bs_pos [num_bs, 3] float64 m, serving [num_points, n] int64 ids into bs_pos,
         site index of each BS [num_bs] int64)
+    :raises InputError: if the file holds fewer than ``n`` sites
     """
+    if len(sites) < n:
+        raise InputError("topology.num_trps", f"{n} TRPs per point, but the sites file holds "
+                         f"{len(sites)} sites")
     d = np.linalg.norm(np.asarray(xy)[:, None, :2] - sites[None, :, :2], axis=-1)
-    near = np.argsort(d, axis=1, kind="stable")[:, :SERVING]
+    near = np.argsort(d, axis=1, kind="stable")[:, :n]
     order: dict[int, int] = {}
     serving = np.empty_like(near)
     for k in range(near.shape[0]):
-        for j in range(SERVING):
+        for j in range(n):
             serving[k, j] = order.setdefault(int(near[k, j]), len(order))
     used = np.array(list(order), dtype=np.int64)
     return sites[used], serving, used

@@ -5,7 +5,8 @@ Cells are the hexagons of a honeycomb whose centres form a triangular lattice wi
 Each hexagon has BSs at three alternate vertices (polar angles 30, 150 and 270 degrees from its
 centre, before rotation). Those vertices form a triangular lattice of their own with spacing
 ``isd``, and each BS is shared by the three cells around it. A UE is served by the three BSs of
-the cell (hexagon) that holds it.
+the cell (hexagon) that holds it (``topology.selection`` 'cell'), or by its ``num_trps`` nearest
+sites (:meth:`HexLayout.nearest`).
 """
 
 from __future__ import annotations
@@ -99,6 +100,43 @@ class HexLayout:
                 if key not in ids:
                     ids[key] = len(bs)
                     bs.append(pos[k, j])
+                serving[k, j] = ids[key]
+        return np.array(bs, dtype=float).reshape(-1, 3), serving
+
+
+    def nearest(self, xy: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ``n`` BS sites nearest each point (2-D distance to the millimetre; ties broken by
+        the site's position, x then y), nearest first, with BS ids shared across points as :meth:`serving`
+        numbers them (in order of first use).
+
+        The sites are the vertices of every cell near the point: the cells within ``reach``
+        lattice steps of the point's cell hold more than ``n`` sites at every distance up to
+        the ``n``-th nearest (a disc of radius r holds about 2 pi r^2 / (sqrt(3) isd^2) sites).
+
+        :param xy: [num_points, 2] float64, m
+        :returns: (bs_pos [num_bs, 3] float64 m, serving [num_points, n] int64 ids into bs_pos)
+        """
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        reach = int(math.ceil(math.sqrt(n))) + 2
+        d = np.arange(-reach, reach + 1)
+        window = np.stack(np.meshgrid(d, d, indexing="ij"), -1).reshape(-1, 2)   # [C, 2]
+        cells = self.cell_of(xy)
+        unit = self.side * 1e-3                                    # site keys as in serving()
+        ids: dict[tuple[int, int], int] = {}
+        bs: list[np.ndarray] = []
+        serving = np.empty((len(xy), n), dtype=np.int64)
+        for k in range(len(xy)):
+            pos = self.cell_bs_positions(cells[k] + window).reshape(-1, 3)
+            keys, first = np.unique(np.round(pos[:, :2] / unit).astype(np.int64), axis=0,
+                                    return_index=True)
+            pos = pos[first]
+            dist = np.linalg.norm(pos[:, :2] - xy[k], axis=1)
+            order = np.lexsort((keys[:, 1], keys[:, 0], np.round(dist * 1e3)))[:n]   # ties: mm
+            for j, o in enumerate(order):
+                key = (int(keys[o, 0]), int(keys[o, 1]))
+                if key not in ids:
+                    ids[key] = len(bs)
+                    bs.append(pos[o])
                 serving[k, j] = ids[key]
         return np.array(bs, dtype=float).reshape(-1, 3), serving
 

@@ -30,6 +30,7 @@ from ...constants import SPEED_OF_LIGHT
 from ...propagation.cir import CIR, ula_element_positions
 from ..channel import occupied_power_factor, receiver_noise_variance
 from ..noise import NoiseSource, WhiteNoise
+from ..nr.grid import ReLayout
 from ..receiver.aoa import AoAEstimator
 from ..receiver.toa import ToAEstimator
 from ..receiver.uplink import UplinkPositioner
@@ -85,8 +86,14 @@ class PositioningChain:
                              f"{nr.slots_per_frame}")
         self.nr, self.security, self.channel, self.receiver = nr, security, channel, receiver
         time_domain = channel.domain == "time"
+        # the frame's slots whose tags are checked: each TRP's own receiver.tag_slots-th PRS
+        # slots (the same slots for all with one slot group; ReLayout.own_slot)
+        lay = ReLayout.from_config(nr, security.tag_scheme != "none")
+        #: indices of the frame's slots any TRP's tags are checked in
+        self.checked_slots = tuple(sorted({lay.own_slot(b, t) for b in range(nr.num_bs)
+                                           for t in receiver.tag_slots}))
         self.frames = FrameSource(nr, security, keys if keys is not None else {}, time_domain,
-                                  None if time_domain else receiver.tag_slots)
+                                  None if time_domain else self.checked_slots)
         self.ofdm, self.slots = self.frames.ofdm, self.frames.slots
         wavelength = SPEED_OF_LIGHT / carrier_frequency_hz
         axis = np.deg2rad(ue_array.axis_azimuth_deg)
@@ -104,7 +111,12 @@ class PositioningChain:
                                         noise if noise is not None else WhiteNoise(), self.noise_var)
         self.timing = TimingStage(ToAEstimator(receiver, channel.timing_guard_s), self.ofdm, self.slots,
                                   channel, receiver.search_window_s, nr.prs_symbols, self.noise_var)
-        self.fix = FixStage(receiver.max_residual_m)
+        weighted = (receiver.fix_weighting == "snr"
+                    or (receiver.fix_weighting == "auto" and nr.num_bs > 3))
+        self.fix = FixStage(receiver.max_residual_m, weighted,
+                            nr.num_subcarriers * nr.subcarrier_spacing_hz,
+                            receiver.range_std_floor_m, receiver.integrity_false_alarm,
+                            receiver.fault_exclusion)
         self.angles = AngleStage(AoAEstimator(receiver.aoa_method, receiver.aoa_num_sources or None,
                                               ue_array.spacing_wavelengths, axis),
                                  receiver.aoa_snapshots)
@@ -164,7 +176,7 @@ class PositioningChain:
         t0 = dl.timing_reference_s
         # with another chain's timing only the tags are left to do: the grid of the slots up to
         # the last checked one is enough (frequency domain)
-        m = (max(self.receiver.tag_slots) + 1 if given is not None and self.channel.domain == "frequency"
+        m = (max(self.checked_slots) + 1 if given is not None and self.channel.domain == "frequency"
              else len(self.slots))
         rx = self.downlink(dl, sig, rng, m, SignalKey(bs_ue, point, frame, plan.replica, m))
         clock("channel")

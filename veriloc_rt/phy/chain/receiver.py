@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...config.channel import ChannelConfig, ReceiverConfig
+from ...constants import SPEED_OF_LIGHT
 from ...propagation.cir import CIR
 from ..channel import Links
 from ..nr.ofdm import OFDM
@@ -132,16 +133,76 @@ class FixStage:
     """The DL fix from the RSTDs of the detected BSs (BS 0 the reference).
 
     :param max_residual_m: m, the solver's residual check
+    :param weighted: weighted least squares with each ToA's std from :func:`range_std` and the
+        chi-square integrity test (``receiver.fix_weighting``); False: the unweighted fit
+    :param bandwidth_hz: Hz, the PRS bandwidth (the CRLB's); floor_m: m, the std floor
+    :param false_alarm: the integrity test's size; exclusion: fault exclusion on
     """
 
-    def __init__(self, max_residual_m: float):
+    def __init__(self, max_residual_m: float, weighted: bool = False, bandwidth_hz: float = 0.0,
+                 floor_m: float = 0.0, false_alarm: float = 0.01, exclusion: bool = True):
         self.max_residual_m = float(max_residual_m)
+        self.weighted, self.bandwidth_hz, self.floor_m = bool(weighted), float(bandwidth_hz), float(floor_m)
+        self.false_alarm, self.exclusion = float(false_alarm), bool(exclusion)
 
     def __call__(self, timing: Timing, bs_pos: np.ndarray, ue_height_m: float) -> MultilaterationResult:
         """:param bs_pos: [num_bs, 3] float64, m; ue_height_m: m, the UE's known height"""
-        solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
-        det = timing.detected
-        return solver(bs_pos, np.where(det, timing.rstd_s, np.nan), 0, det)
+        return self.solve(timing.detected, timing.toa_s,
+                          [e.peak_snr_db for e in timing.estimates], bs_pos, ue_height_m)
+
+    def solve(self, detected, toa_s, peak_snr_db, bs_pos: np.ndarray,
+              ue_height_m: float) -> MultilaterationResult:
+        """The fix from the ToAs of the BSs ``detected`` (a subset: the fix from those alone).
+
+        :param detected: [num_bs] bool; toa_s: [num_bs] float64, s; peak_snr_db: [num_bs] dB
+        """
+        det = np.asarray(detected, dtype=bool)
+        toa = np.asarray(toa_s, dtype=float)
+        snr = np.asarray(peak_snr_db, dtype=float)
+        ref = reference_trp(det, snr)
+        rstd = toa - toa[ref]
+        if not self.weighted:
+            solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.max_residual_m)
+            return solver(bs_pos, np.where(det, rstd, np.nan), ref, det)
+        # the weighted fit's check is the chi-square test: the rms check is left wide open
+        solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=1e9,
+                                false_alarm=self.false_alarm, exclusion=self.exclusion)
+        sig = range_std(snr, self.bandwidth_hz, self.floor_m)
+        return solver(bs_pos, np.where(det, rstd, np.nan), ref, det, range_std_m=sig)
+
+
+def range_std(peak_snr_db: np.ndarray, bandwidth_hz: float, floor_m: float) -> np.ndarray:
+    """Range std of each ToA, m: the CRLB of a delay estimate, var(tau) >= 1 / (8 pi^2 beta^2
+    SNR) with beta the rms bandwidth (Kay, Fundamentals of Statistical Signal Processing:
+    Estimation Theory, 1993, ch. 3's range estimation; Gezici et al., IEEE Signal Processing
+    Magazine 22(4), 2005: references as recalled, their equation numbers not checked here;
+    tests/unit/phy/test_reference_trp.py checks the formula as written), for a PRS spectrum
+    flat over B (beta^2 = B^2 / 12), so
+    sigma_r^2 = 3 c^2 / (2 pi^2 B^2 SNR), plus ``floor_m`` in quadrature. SNR is the
+    post-integration SNR, taken from the correlation peak over its noise floor as
+    10^(peak_snr_db / 10) - 1 (the peak metric holds the noise's mean once); at least 1e-3.
+
+    :param peak_snr_db: [num_bs] float64, dB (non-finite counts as SNR 1e-3: such a BS is not
+        detected and the fix does not use it)
+    :returns: [num_bs] float64, m
+    """
+    snr = np.maximum(10.0 ** (np.asarray(peak_snr_db, dtype=float) / 10.0) - 1.0, 1e-3)
+    snr = np.where(np.isfinite(snr), snr, 1e-3)
+    crlb = 3.0 * SPEED_OF_LIGHT**2 / (2.0 * np.pi**2 * bandwidth_hz**2 * snr)
+    return np.sqrt(crlb + floor_m**2)
+
+
+def reference_trp(detected, peak_snr_db) -> int:
+    """The RSTD reference: slot 0 (the strongest TRP by the serving order) when it is heard,
+    else the heard TRP with the highest correlation-peak SNR (0 when none is heard). With three
+    TRPs a lost slot 0 leaves two, too few for a fix whichever is the reference.
+
+    :param detected: [num_bs] bool; peak_snr_db: [num_bs] float64, dB
+    """
+    det = np.asarray(detected, bool)
+    if det[0] or not det.any():
+        return 0
+    return int(np.argmax(np.where(det, np.asarray(peak_snr_db, dtype=float), -np.inf)))
 
 
 def zenith_from_fix(bs_pos: np.ndarray, fix: MultilaterationResult) -> np.ndarray:
@@ -200,7 +261,8 @@ class AngleStage:
 class TagStage:
     """The tag check of every detected BS.
 
-    :param tag_slots: indices (in the frame) of the slots whose tags are checked
+    :param tag_slots: which of each BS's PRS slots have their tags checked (indices in the
+        frame with one slot group; else counted from the BS's group's first slot)
     :param slots: the frame's slot numbers
     """
 
@@ -232,7 +294,8 @@ class TagStage:
         tags = np.zeros(len(estimates), dtype=bool)
         for b, e in enumerate(estimates):
             if (reuse and b < len(kept[3]) and e is kept[3][b]
-                    and not received.reaches(lay.prs_mask(b) | lay.tag_mask(b), self.tag_slots)):
+                    and not received.reaches(lay.prs_mask(b) | lay.tag_mask(b),
+                                             self.slots_of(lay, b))):
                 tags[b] = kept[4][b]
                 continue
             rep = replicas[b] if replicas is not None else None
@@ -240,6 +303,11 @@ class TagStage:
         if received is not None and received.plain:
             self._benign = (grid, verifier, frame, tuple(estimates), tags.copy())
         return tags
+
+    def slots_of(self, layout, bs: int) -> list[int]:
+        """Indices of the frame's slots whose tags of BS ``bs`` are checked: its own
+        ``tag_slots``-th PRS slots (:meth:`~veriloc_rt.phy.nr.grid.ReLayout.own_slot`)."""
+        return [layout.own_slot(bs, t) for t in self.tag_slots]
 
     def one(self, verifier: TagVerifier, grid: np.ndarray, est: ToAEstimate, bs: int, frame: int,
             replica: np.ndarray | None) -> bool:
@@ -251,7 +319,7 @@ class TagStage:
         nrm = np.linalg.norm(w)
         w = w / nrm if nrm > 0 else np.ones_like(w) / np.sqrt(w.size)
         lay = verifier.layout
-        for s in self.tag_slots:
+        for s in self.slots_of(lay, bs):
             combined = np.tensordot(w, grid[:, s], axes=(0, 0))
             if replica is None:
                 ok = verifier(combined, bs, frame, int(self.slots[s]))

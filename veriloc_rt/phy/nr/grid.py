@@ -4,6 +4,10 @@ Each BS ``i`` maps its PRS with comb offset ``o_i`` (TS 38.211 7.4.1.7.3). With 
 tag REs follow the same staggered comb pattern at offset ``(o_i + K_comb/2) mod K_comb``: this
 reproduces the paper's dispersion figure for comb 6 (PRS offsets 0, 1, 2 and SIG offsets 3, 4, 5,
 "three BSs' PRS plus three BSs' tags") and generalises it to the other comb sizes.
+
+More TRPs than one slot holds share the frame by slot groups (``NRConfig.slot_plan``): group g
+transmits in PRS slots g T_rep .. (g + 1) T_rep - 1 only (its resources' slot offset, TS 38.214
+5.1.6.1), so REs collide only within a group.
 """
 
 from __future__ import annotations
@@ -30,6 +34,8 @@ class ReLayout:
     :param start_symbol: l_start
     :param prs_offsets: k_offset per BS
     :param tags: whether each BS also sends a tag at offset k_offset + K_comb/2
+    :param groups: slot group of each BS (() : all in group 0, every slot)
+    :param repetition: T_rep, the PRS slots of each group (0: every slot, one group)
     """
 
     num_subcarriers: int
@@ -38,6 +44,8 @@ class ReLayout:
     start_symbol: int
     prs_offsets: tuple[int, ...]
     tags: bool
+    groups: tuple[int, ...] = ()
+    repetition: int = 0
 
     def __post_init__(self) -> None:
         check_comb(self.comb, self.num_symbols)
@@ -46,17 +54,39 @@ class ReLayout:
         self.occupancy()  # raises on collisions
 
     @classmethod
-    def from_config(cls, nr: NRConfig, tags: bool) -> "ReLayout":
-        """Layout of ``nr``; a collision between PRS and tag REs is an :class:`InputError`."""
+    def from_config(cls, nr: NRConfig, tags: bool, network_tags: bool | None = None) -> "ReLayout":
+        """Layout of ``nr``; a collision between PRS and tag REs is an :class:`InputError`.
+
+        :param network_tags: whether the network sends tags, which sets the slot groups
+            (``NRConfig.slot_plan``; None: ``tags``): a transmitter without tags of its own
+            (a spoofer's replicas) keeps the network's slots
+        """
+        groups, rep = nr.slot_plan(tags if network_tags is None else network_tags)
+        one = max(groups) == 0
         try:
             return cls(nr.num_subcarriers, nr.comb, nr.num_symbols, nr.start_symbol,
-                       tuple(nr.comb_offsets), tags)
+                       tuple(nr.comb_offsets), tags, () if one else groups, 0 if one else rep)
         except ValueError as exc:
             raise InputError("nr.comb_offsets", str(exc)) from None
 
     @property
     def num_bs(self) -> int:
         return len(self.prs_offsets)
+
+    def group(self, bs: int) -> int:
+        return self.groups[bs] if self.groups else 0
+
+    def transmits(self, bs: int, slot: int) -> bool:
+        """BS ``bs`` sends its PRS (and tags) in PRS slot ``slot`` (counted from the frame's
+        first PRS slot): its group's T_rep slots, or every slot with one group."""
+        if not self.repetition:
+            return True
+        g = self.group(bs)
+        return g * self.repetition <= int(slot) < (g + 1) * self.repetition
+
+    def own_slot(self, bs: int, k: int) -> int:
+        """The ``k``-th PRS slot BS ``bs`` transmits in (``k`` itself with one group)."""
+        return self.group(bs) * self.repetition + int(k)
 
     @property
     def res_per_symbol(self) -> int:
@@ -94,16 +124,26 @@ class ReLayout:
         return mask
 
     def occupancy(self) -> np.ndarray:
-        """Who owns each RE: 0 empty, ``i + 1`` PRS of BS ``i``, ``-(i + 1)`` tag of BS ``i``.
+        """Who owns each RE: 0 empty, ``i + 1`` PRS of BS ``i``, ``-(i + 1)`` tag of BS ``i``
+        (in the slots of group 0; every group's slots are checked).
 
         :return: owner : [14, num_subcarriers] int16
         :raises ValueError: if two signals share an RE
         """
-        if self.tags and 2 * self.num_bs > self.comb:
-            raise ValueError(f"{self.num_bs} BSs with tags need comb >= {2 * self.num_bs}, "
-                             f"not {self.comb}")
+        if self.groups and len(self.groups) != self.num_bs:
+            raise ValueError(f"Argument `groups` must name one group per BS ({self.num_bs})")
+        if self.groups and self.repetition < 1:
+            raise ValueError("Argument `repetition` must be >= 1 with slot groups")
+        return [self.group_occupancy(g) for g in sorted(set(self.groups or (0,)))][0]
+
+    def group_occupancy(self, g: int) -> np.ndarray:
+        """:meth:`occupancy` of the slots of group ``g`` (BSs of other groups absent there)."""
+        members = [b for b in range(self.num_bs) if self.group(b) == g]
+        if self.tags and 2 * len(members) > self.comb:
+            raise ValueError(f"{len(members)} BSs with tags in one slot need comb >= "
+                             f"{2 * len(members)}, not {self.comb}")
         owner = np.zeros((SYMBOLS_PER_SLOT, self.num_subcarriers), dtype=np.int16)
-        for bs in range(self.num_bs):
+        for bs in members:
             claims = [(self.prs_mask(bs), bs + 1)]
             if self.tags:
                 claims.append((self.tag_mask(bs), -(bs + 1)))

@@ -22,7 +22,7 @@ for bad geometry or inconsistent measurements. Bad arguments (shapes, types) rai
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from math import sqrt
 
 import numpy as np
@@ -80,6 +80,13 @@ class MultilaterationResult:
     nfev: int = 0
     starts: list = field(default_factory=list)
     alternatives: list = field(default_factory=list)
+    #: [2, 2] float64, m^2, covariance of the (x, y) fix from the weighted fit, (J^T C^-1 J)^-1
+    #: with C the RSTD covariance (None: unweighted fit, or no fix)
+    covariance: np.ndarray | None = None
+    #: indices (into the call's ``bs_pos``) the integrity test excluded, in exclusion order
+    excluded: tuple = ()
+    #: indices (into the call's ``bs_pos``) of the anchors the fix used
+    used: tuple = ()
 
     @property
     def ambiguous(self) -> bool:
@@ -243,11 +250,14 @@ class Multilaterator:
     :param max_distance_m: float, m, fixes farther than this from the BS centroid are divergence
     :param max_nfev: int, LM evaluation cap per start
     :param grid_points: int, grid nodes per axis for the coarse initialisation
+    :param exclusion: with per-anchor stds (``range_std_m``), exclude anchors until the
+        chi-square test passes (fault detection and exclusion), else only test
     """
 
     def __init__(self, ue_height_m: float = 1.5, max_residual_m: float = 10.0,
                  sigma_m: float | None = None, false_alarm: float = 1e-3,
-                 max_distance_m: float = 10_000.0, max_nfev: int = 200, grid_points: int = 41):
+                 max_distance_m: float = 10_000.0, max_nfev: int = 200, grid_points: int = 41,
+                 exclusion: bool = True):
         for name, val in (("max_residual_m", max_residual_m), ("max_distance_m", max_distance_m)):
             if not np.isfinite(val) or val <= 0:
                 raise ValueError(f"Argument `{name}` must be finite and > 0, not {val!r}")
@@ -262,8 +272,10 @@ class Multilaterator:
         self.max_distance_m = float(max_distance_m)
         self.max_nfev = int(max_nfev)
         self.grid_points = int(grid_points)
+        self.exclusion = bool(exclusion)
 
-    def __call__(self, bs_pos, rstd_s, ref_index: int = 0, valid=None) -> MultilaterationResult:
+    def __call__(self, bs_pos, rstd_s, ref_index: int = 0, valid=None,
+                 range_std_m=None) -> MultilaterationResult:
         """Position fix from RSTDs.
 
         :param bs_pos: [num_bs, 3] float64, m
@@ -271,6 +283,11 @@ class Multilaterator:
             entries count as not detected
         :param ref_index: int, index of the reference BS
         :param valid: optional [num_bs] bool, BSs detected
+        :param range_std_m: optional [num_bs] float64, m, each ToA's range std (c sigma_tau):
+            the fit is then weighted least squares with the RSTD covariance
+            C = diag(sigma_i^2) + sigma_ref^2 1 1^T, the result carries the fix covariance,
+            and with ``exclusion`` the chi-square(N - 3) test of the whitened residuals at
+            ``false_alarm`` excludes anchors (:meth:`_exclude`)
         """
         bs = np.asarray(bs_pos, dtype=float)
         rstd = np.asarray(rstd_s, dtype=float)
@@ -297,10 +314,80 @@ class Multilaterator:
                                          f"{n} BSs detected, 3 needed for a 2-D fix", num_bs=n)
         idx = np.flatnonzero(use)
         ref = int(np.flatnonzero(idx == ref_index)[0])
-        return self._solve(bs[idx], SPEED_OF_LIGHT * np.where(np.isfinite(rstd), rstd, 0.0)[idx], ref)
+        rd = SPEED_OF_LIGHT * np.where(np.isfinite(rstd), rstd, 0.0)
+        if range_std_m is None:
+            return replace(self._solve(bs[idx], rd[idx], ref), used=tuple(idx.tolist()))
+        sig = np.asarray(range_std_m, dtype=float)
+        if sig.shape != (bs.shape[0],):
+            raise ValueError(f"Argument `range_std_m` must have shape ({bs.shape[0]},), not "
+                             f"{sig.shape}")
+        if not np.all((sig[idx] > 0) & np.isfinite(sig[idx])):
+            raise ValueError("Argument `range_std_m` must be finite and > 0 for the used BSs")
+        return self._exclude(bs, rd, sig, list(idx.tolist()), int(ref_index))
+
+    def _exclude(self, bs: np.ndarray, rd: np.ndarray, sig: np.ndarray, used: list[int],
+                 ref: int) -> MultilaterationResult:
+        """Weighted fix of the anchors ``used`` and fault detection and exclusion.
+
+        The chi-square statistic of the whitened residuals, r^T C^-1 r, has N - 3 degrees of
+        freedom for N anchors (N - 1 RSTDs, two unknowns) under Gaussian ToA noise of the
+        given stds. When it exceeds the (1 - false_alarm) quantile and at least one degree of
+        freedom would remain, every anchor is tried out in turn (the reference too: the
+        remaining anchor of least std becomes the reference, the range differences re-taken
+        to it) and the one whose removal leaves the least statistic is excluded; then the test
+        is repeated (RAIM fault detection and exclusion as in GNSS receivers: Parkinson and
+        Axelrad, "Autonomous GPS integrity monitoring using the pseudorange residual",
+        Navigation 35(2), 1988; Brown, "A baseline GPS RAIM scheme", Navigation 39(3), 1992;
+        references as recalled).
+        Without ``exclusion`` only the test is made. A fix that still fails it is a residual
+        failure naming the statistic.
+        """
+        excluded: list[int] = []
+        while True:
+            res = self._weighted(bs, rd, sig, used, ref)
+            thr = chdtri(res.dof, self.false_alarm) if res.dof > 0 else np.inf
+            fails = res.dof > 0 and res.chi2 > thr and res.status != STATUS_NO_CONVERGENCE
+            if not fails or not self.exclusion or res.dof < 2:
+                break
+            best = None
+            for j in used:
+                rest = [i for i in used if i != j]
+                r2 = ref if j != ref else min(rest, key=lambda i: sig[i])
+                trial = self._weighted(bs, rd, sig, rest, r2)
+                # a trial without a usable fix explains nothing
+                stat = trial.chi2 if trial.status in (STATUS_OK, STATUS_RESIDUAL) else np.inf
+                if best is None or stat < best[0]:
+                    best = (stat, j, r2)
+            if not np.isfinite(best[0]):
+                break
+            _, j, ref = best
+            used = [i for i in used if i != j]
+            excluded.append(j)
+        res = replace(res, excluded=tuple(excluded), used=tuple(used))
+        if res.ok and fails:
+            return replace(res, ok=False, status=STATUS_RESIDUAL,
+                           reason=f"chi-square {res.chi2:.1f} > {thr:.1f} (dof {res.dof}, "
+                                  f"P_fa {self.false_alarm:g})"
+                                  + (f" after excluding {len(excluded)}" if excluded else ""))
+        return res
+
+    def _weighted(self, bs: np.ndarray, rd: np.ndarray, sig: np.ndarray, used: list[int],
+                  ref: int) -> MultilaterationResult:
+        """Weighted fix of anchors ``used`` (indices into ``bs``) with reference ``ref``."""
+        idx = np.asarray(used)
+        k = int(np.flatnonzero(idx == ref)[0])
+        # range differences to the reference taken afresh (rd holds them to the call's one)
+        rdi = rd[idx] - rd[ref]
+        s2 = sig[idx] ** 2
+        others = [i for i in range(len(idx)) if i != k]
+        cov = np.diag(s2[others]) + s2[k]
+        res = self._solve(bs[idx], rdi, k, cov=cov)
+        return res
+
 
     # -- internals ---------------------------------------------------------------------------
-    def _solve(self, bs: np.ndarray, rd: np.ndarray, ref: int) -> MultilaterationResult:
+    def _solve(self, bs: np.ndarray, rd: np.ndarray, ref: int,
+               cov: np.ndarray | None = None) -> MultilaterationResult:
         # imported on the first fix: a run that computes no chain (a resume past its last
         # point) then never loads scipy.optimize
         from scipy.optimize import leastsq
@@ -308,8 +395,9 @@ class Multilaterator:
         n = bs.shape[0]
         others = np.array([i for i in range(n) if i != ref])
         m = n - 1
-        # whitening of the RSTD covariance I + 1 1^T: W^T W = (I + 1 1^T)^-1
-        w = np.linalg.cholesky(np.eye(m) - np.ones((m, m)) / n).T
+        # whitening of the RSTD covariance I + 1 1^T: W^T W = (I + 1 1^T)^-1 (or of ``cov``)
+        w = (np.linalg.cholesky(np.eye(m) - np.ones((m, m)) / n).T if cov is None
+             else np.linalg.cholesky(np.linalg.inv(cov)).T)
         h2 = (bs[:, 2] - self.ue_height_m) ** 2
 
         def raw(xy):
@@ -362,11 +450,19 @@ class Multilaterator:
         r = raw(best.x)
         rms = float(np.sqrt(np.mean(r**2)))
         dof = n - 3
-        stat = float(2.0 * best.cost / self.sigma_m**2) if self.sigma_m else 0.0
+        if cov is not None:     # whitened by the full covariance: the SSR is the statistic
+            stat = float(2.0 * best.cost)
+        else:
+            stat = float(2.0 * best.cost / self.sigma_m**2) if self.sigma_m else 0.0
         g = gdop(bs, pos, ref)
         common = dict(residual_rms_m=rms, chi2=stat, dof=dof, num_bs=n, gdop=g,
                       nfev=int(best.nfev), starts=[np.asarray(s) for s in starts],
                       alternatives=[np.append(a, self.ue_height_m) for a in alternatives[1:]])
+        if cov is not None:
+            jw = np.asarray(jac(best.x), dtype=float)           # W J, [N - 1, 2]
+            info = jw.T @ jw
+            common["covariance"] = (np.linalg.inv(info) if np.linalg.cond(info) < 1e12
+                                    else np.full((2, 2), np.inf))
         if best.status <= 0:
             return MultilaterationResult(pos, False, STATUS_NO_CONVERGENCE,
                                          f"Levenberg-Marquardt stopped: {best.message}", **common)

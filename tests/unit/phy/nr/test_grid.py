@@ -70,7 +70,17 @@ def test_tag_collision_is_an_input_error(offsets):
     ReLayout.from_config(cfg, tags=False)  # fine without tags
 
 
-def test_too_many_bs_for_comb_with_tags():
+def test_more_bs_than_a_slot_holds_take_slot_groups():
+    # comb 4 with tags holds two BSs per slot: the third transmits in a second slot group;
+    # T_rep = 4, the largest TS 38.214 repetition factor with 2 x T_rep <= 10 slots
     cfg = NRConfig(comb=4, comb_offsets=(0, 1, 2), num_symbols=12)
-    with pytest.raises(InputError):
+    lay = ReLayout.from_config(cfg, tags=True)
+    assert lay.groups == (0, 0, 1) and lay.repetition == 4
+    assert [s for s in range(10) if lay.transmits(2, s)] == [4, 5, 6, 7]
+    assert [s for s in range(10) if lay.transmits(0, s)] == [0, 1, 2, 3]
+
+
+def test_collision_within_a_slot_group_is_an_input_error():
+    cfg = NRConfig(comb=4, comb_offsets=(0, 2), prs_ids=(0, 1), num_symbols=12)   # 0's tag is 2
+    with pytest.raises(InputError, match="nr.comb_offsets"):
         ReLayout.from_config(cfg, tags=True)
