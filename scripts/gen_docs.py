@@ -226,7 +226,11 @@ METRICS_DOC = {
 METRICS_TOP_DOC = {
     "scenarios": "one object per scenario (`none`, `fbs`, `meaconing`, `jamming`) with the "
                  "keys below",
-    "timing_s": "wall and CPU seconds per stage (below), the worker count and the peak memory",
+    "timing_s": "wall and CPU seconds per stage (below): seconds only",
+    "resources": "`workers` (processes or Dask threads that computed the chains), `scheduler` "
+                 "(the Dask scheduler's address, only with `--scheduler`), "
+                 "`peak_rss_main_mib` and `peak_rss_worker_mib` (peak resident memory of the "
+                 "main process and of the largest worker, MiB; single runs only)",
     "propagation_model": "`raytrace` or `uma` (the config's `propagation.model`)",
     "doppler_hz": "`max_path`: the largest Doppler magnitude the UE receives in the run (its "
                   "BS -> UE paths; with an attack the adversary's paths, relayed ones with both "
@@ -274,11 +278,7 @@ TIMING_DOC = {
     "chain_total": "the positioning chain, CPU s summed over the workers",
     "adversary_total": "the adversary's signal (spoofer, relay, jammer), CPU s",
     "detectors_total": "the five detectors, CPU s (in the main process)",
-    "workers": "processes (or Dask threads) that computed the chains",
-    "scheduler": "the Dask scheduler's address (only with `--scheduler`)",
     "total": "the whole run (wall s)",
-    "peak_rss_main_mib": "peak resident memory of the main process, MiB",
-    "peak_rss_worker_mib": "peak resident memory of the largest worker, MiB",
 }
 
 #: what each chain stage covers (phy/chain/positioning.py STAGES)
@@ -418,6 +418,28 @@ def outputs_md() -> str:
            "that writes them; the file lists and the JSON layouts of `run.json` and "
            "`propagation_summary.json` are described by hand from `veriloc_rt/sim/engine.py`, "
            "`compare.py` and `validate.py`. Units: SI, or the unit in the name.", "",
+           "## JSON files and units", "",
+           "Every JSON file the package writes (`metrics.json`, `run.json`, "
+           "`propagation_summary.json`, `comparison.json`, `bench.json`, `validation.json`, "
+           "`scene.json`, `veriloc-rt schema` and `config` output) is strict JSON (RFC 8259) "
+           "that any parser reads (`JSON.parse`, `jq`, MATLAB's `jsondecode`, Python's "
+           "`json`): JSON has no infinite or not-a-number value, so a float that is "
+           "`+inf` or `-inf` (a threshold at the reject-all end of a ROC, a rule that "
+           "rejects whatever the threshold) is written as the **string** `\"inf\"` or "
+           "`\"-inf\"` (`float(\"inf\")` and MATLAB's `str2double` read it back), and a "
+           "not-a-number as `null` (no value), as is a percentage of no points.", "",
+           "Units: a number is in SI units or in the unit its key's name ends with "
+           "(`_m`, `_s`, `_hz`, `_db`, `_mib`, `_pct` = percent). The two shares without a "
+           "unit in their name are fixed per block: under `scenarios.<name>` "
+           "(`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
+           "`benign_phase_false_alarm_rate`) every share is in **percent** (0-100, as the "
+           "paper's tables); under `roc` (`benign_accept`, `attack_reject`, "
+           "`false_alarm`, `min_benign_accept`, `auc`) every share is a **fraction** "
+           "(0-1), as ROC axes are. `timing_s` holds seconds only; counts and memory are in "
+           "`resources`. `run.json` records paths inside the run folder relative to it "
+           "(`scene_xml`: `scene/scene.xml`), the package versions (`versions`) and "
+           "`git_revision` (the commit of the package's git checkout, `-dirty` appended "
+           "when its tracked files differ; null for an installed copy).", "",
            "## `veriloc-rt run`", "",
            "| file | holds |", "| --- | --- |",
            "| `<scenario>_results.csv` | one row per trajectory point, written and flushed as "
@@ -427,8 +449,8 @@ def outputs_md() -> str:
            "| `run.json` | the resolved config (every default filled in), `seed`, `status` "
            "(`running` until the end, then `complete`; `stopped` when it ends unfinished: "
            "Ctrl-C, SIGTERM, an error), `versions` (veriloc-rt, Sionna RT, "
-           "Mitsuba, Dr.Jit, NumPy, ...), `timing_s`, `scene_xml`. `--resume` compares its "
-           "config with the new one |",
+           "Mitsuba, Dr.Jit, NumPy, ...), `git_revision`, `timing_s`, `resources`, `scene_xml` "
+           "(relative to the run folder). `--resume` compares its config with the new one |",
            "| `propagation_summary.json` | the scene (buildings or triangles, BSs, points, the "
            "UE's path length and mean speed) and, per link set (`bs_to_ue`, `bs_to_adversary`, "
            "`adversary_to_ue`), links, share with a path, LoS share, paths per link, rms delay "

@@ -25,6 +25,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from .errors import InputError
+from .fileio import json_text
 
 #: most BSs ``keys`` writes a set for: the BS id is 24 bits in the AES-CTR counter block
 MAX_KEY_SETS = 2**24
@@ -163,8 +164,9 @@ def _run(cfg, out: Path, args) -> int:
 
     print("chain by stage (s, summed over workers): " + ", ".join(
         f"{k} {t[f'{k}_total']:.1f}" for k in STAGES if f"{k}_total" in t))
-    print(f"peak memory: {t['peak_rss_main_mib']:.0f} MiB main process, "
-          f"{t['peak_rss_worker_mib']:.0f} MiB largest worker")
+    r = res.metrics["resources"]
+    print(f"peak memory: {r['peak_rss_main_mib']:.0f} MiB main process, "
+          f"{r['peak_rss_worker_mib']:.0f} MiB largest worker")
     print(f"wrote {out}/ (metrics.json, <scenario>_results.csv, run.json, *.png, scene/)")
     return 0
 
@@ -446,7 +448,7 @@ def cmd_config(args) -> int:
     from .config import config_schema, config_to_dict
 
     if args.action == "schema":
-        print(json.dumps(config_schema(), indent=2))
+        print(json_text(config_schema()))
     elif args.action == "check":
         import tempfile
 
@@ -458,7 +460,7 @@ def cmd_config(args) -> int:
             print(f"ok: {geo.num_points} points, {len(geo.bs_pos)} BSs, scene "
                   f"{cfg.scene.source}, trajectory {cfg.trajectory.source}")
     else:
-        print(json.dumps(config_to_dict(_load(args.config)), indent=2))
+        print(json_text(config_to_dict(_load(args.config))))
     return 0
 
 

@@ -23,6 +23,8 @@ from veriloc_rt.studies.bench import ACCURACY_ALPHA, COST_RTOL, PARETO_METRIC
 from veriloc_rt.cli import main
 from veriloc_rt.fileio import TMP_MARK
 
+from .strict_json import assert_strict_json
+
 CONFIG = str(Path(__file__).resolve().parents[2] / "configs" / "ci-tiny.json")
 
 pytestmark = pytest.mark.raytrace
@@ -66,6 +68,7 @@ def _rows(path):
 
 
 def test_bench_files_and_numbers(bench_out):
+    assert_strict_json(bench_out / "bench.json")
     for name in ("bench.csv", "bench.json", "bench.md", "bench_pareto.png"):
         assert (bench_out / name).stat().st_size > 0, name
     rows = _rows(bench_out / "bench.csv")
@@ -154,6 +157,7 @@ def test_compare_writes_each_file_atomically(compare_out):
 
 
 def test_compare_files_and_numbers(compare_out):
+    assert_strict_json(compare_out / "comparison.json")
     for name in ("comparison.md", "comparison.json", "comparison_points.csv",
                  "comparison_channel.csv", "comparison_cdf.png", "comparison_detectors.png",
                  "raytrace/metrics.json", "uma/metrics.json"):

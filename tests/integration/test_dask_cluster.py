@@ -138,11 +138,11 @@ def test_real_cluster_gives_the_serial_files(serial, cluster):
     # JSON/CSV files (roc.csv among them), chains.bin, 8 plots (roc.png) and 3 scene files
     # (XML, 2 PLY)
     assert files == 6 + REALISATIONS * 19
-    timing = json.loads((where / "mc_dask" / "metrics.json").read_text())["timing_s"]
+    timing = json.loads((where / "mc_dask" / "metrics.json").read_text())["resources"]
     assert timing["scheduler"] == address and timing["workers"] == 2
 
     assert assert_same_run_files(where / "one_serial", where / "one_dask") == 19
-    timing = json.loads((where / "one_dask" / "metrics.json").read_text())["timing_s"]
+    timing = json.loads((where / "one_dask" / "metrics.json").read_text())["resources"]
     assert timing["scheduler"] == address and timing["workers"] == 2
     # the workers wrote nothing where they run: every file went to the client's --out
     assert not any(worker_cwd.iterdir())

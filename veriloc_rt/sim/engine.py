@@ -19,7 +19,6 @@ cluster (``scheduler``), with the serial run's numbers either way (see the execu
 
 from __future__ import annotations
 
-import json
 import logging
 import resource
 import time
@@ -32,7 +31,7 @@ import numpy as np
 
 from ..config import Config
 from ..errors import InputError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_write_text, json_text
 from ..inputs import read_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import STOCHASTIC_MODELS, stochastic_propagation
@@ -174,7 +173,8 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
          client, cache_dir: str | Path | None = "default") -> Results:
-    timing: dict = {}
+    timing: dict = {}     # seconds only
+    resources: dict = {}  # workers, scheduler, peak memory
     t0 = time.perf_counter()
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
     geometry = build_geometry(cfg, scene_dir)
@@ -196,7 +196,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     warn_silent_bs(prop.bs_ue.has_path(), geometry.serving)
     summary = propagation_summary(geometry, prop)
     if out:
-        atomic_write_text(out / "propagation_summary.json", json.dumps(summary, indent=2))
+        atomic_write_text(out / "propagation_summary.json", json_text(summary))
         write_run_json(out, cfg, "running", timing, fields)
 
     runner = ScenarioRunner(cfg, geometry, prop, keys)
@@ -205,7 +205,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     try:
         if client is not None:
             pool = DaskChains(runner, client)
-            timing["scheduler"] = client.scheduler.address
+            resources["scheduler"] = client.scheduler.address
         elif workers > 1:
             pool = ForkPool(runner, workers)
         rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing, store)
@@ -219,10 +219,12 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     if pool is not None:
         pool.close()
     timing.update({f"{k}_total": v for k, v in runner.timing.items()})
-    timing["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
+    resources["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
     timing["total"] = time.perf_counter() - t0
-    timing.update(_peak_rss_mib())
+    resources.update(_peak_rss_mib())
     metrics["timing_s"] = timing
+    metrics["resources"] = resources
+    fields["resources"] = resources
     metrics["propagation_model"] = cfg.propagation.model
     metrics["doppler_hz"] = {"max_path": runner.max_doppler_hz, "scan": runner.doppler_scan_hz}
     analysis = analyse_detection(rows, cfg)
@@ -232,7 +234,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
             if s != "none":
                 m["uninformative_detectors"] = list(analysis.uninformative)
     if out:
-        atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2))
+        atomic_write_text(out / "metrics.json", json_text(metrics))
         _write_plots(out, metrics)
         if analysis is not None:
             write_roc_csv(out / "roc.csv", analysis)

@@ -43,7 +43,6 @@ JSON and a markdown table are written by :func:`write_bench`.
 from __future__ import annotations
 
 import copy
-import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -54,7 +53,7 @@ import numpy as np
 
 from ..config import Config, config_from_dict, config_to_dict
 from ..constants import SPEED_OF_LIGHT
-from ..fileio import atomic_output, atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 from ..propagation import link_metrics as lm
 from ..world.geometry import build_geometry
@@ -684,8 +683,7 @@ def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
         w.writeheader()
         for r in rows:
             w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
-    atomic_write_text(out / "bench.json", json.dumps({"meta": res.meta, "settings": rows},
-                                                     indent=2))
+    atomic_write_text(out / "bench.json", json_text({"meta": res.meta, "settings": rows}))
     md = (f"# Fidelity sweep ({res.meta['num_points']} points, propagation "
           f"{res.meta['propagation_model']}, seed {res.meta['seed']})\n\n"
           "Deviations are from the reference (highest level of every knob of the group; for "

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,7 +46,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import Config
-from ..fileio import atomic_output, atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles
 from .validate import traced_pathloss_db
 from ..report.propagation_summary import rms_delay_spread
@@ -418,9 +417,9 @@ def _write(res: ComparisonResult, cfg: Config) -> None:
         out / "comparison.md",
         f"# Ray tracing vs {_twin_label(res)} ({len(res.benign[rt_m].points)} points, seed "
         f"{cfg.seed}, mode {cfg.propagation.uma_mode})\n\n" + markdown(res))
-    atomic_write_text(out / "comparison.json", json.dumps(
+    atomic_write_text(out / "comparison.json", json_text(
         {"twin": res.twin, "channel": res.channel, "errors": res.errors,
-         "detectors": res.detectors, "timing_s": res.timing_s}, indent=2))
+         "detectors": res.detectors, "timing_s": res.timing_s}))
     with atomic_output(out / "comparison_points.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["model", "point", "bs", "toa_bias_m", "rstd_error_m", "aoa_error_deg",
