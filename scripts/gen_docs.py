@@ -40,6 +40,7 @@ if str(ROOT) not in sys.path:  # run as a script from a checkout without install
 
 from veriloc_rt.sim import montecarlo  # noqa: E402
 from veriloc_rt.studies import bench  # noqa: E402
+from veriloc_rt.report.tables import TABLES  # noqa: E402
 from veriloc_rt.config import Config, config_schema, config_to_dict  # noqa: E402
 from veriloc_rt.phy.chain import STAGES  # noqa: E402
 from veriloc_rt.report.results import CSV_COLUMNS, scenario_metrics  # noqa: E402
@@ -279,6 +280,27 @@ TIMING_DOC = {
     "adversary_total": "the adversary's signal (spoofer, relay, jammer), CPU s",
     "detectors_total": "the five detectors, CPU s (in the main process)",
     "total": "the whole run (wall s)",
+}
+
+#: the tables of veriloc_rt.load_run (veriloc_rt/report/tables.py TABLES)
+TABLES_DOC = {
+    "points": "point of a `<scenario>_results.csv`: `realisation`, `scenario`, then the CSV's "
+              "columns",
+    "links": "row of a `<scenario>_links.csv` (per-TRP links), the same way (empty without "
+             "such files)",
+    "metrics": "leaf of `metrics.json`: `realisation`, `key` (dotted path, list items by "
+               "index), `value` (the number; `inf` for `\"inf\"`, NaN for null or text), "
+               "`text` (a string or a list of strings joined by commas, else empty)",
+    "scenario_metrics": "share or error percentile of `scenarios.<name>`: `realisation`, "
+                        "`scenario`, `metric` (`outcomes`, `correct_decision_rate`, ...), "
+                        "`item` (outcome, detector or percentile), `value`, `unit` (`%` or "
+                        "`m`)",
+    "roc": "vertex of `roc.csv`: `realisation`, `detector`, `attack`, `threshold`, "
+           "`benign_accept`, `attack_reject`",
+    "operating_points": "`roc.attacks.<attack>.<decision>`: `realisation`, `attack`, "
+                        "`detector`, `auc`, `threshold`, `benign_accept`, `attack_reject` "
+                        "(fractions), `uninformative` (the detector is flagged: its "
+                        "`attack_reject` is no detection)",
 }
 
 #: what each chain stage covers (phy/chain/positioning.py STAGES)
@@ -550,6 +572,19 @@ def outputs_md() -> str:
             "marked) and `bench.csv`, one row per setting:", ""]
     out += _columns_table(bench.CSV_FIELDS,
                           lambda c: _describe(BENCH_DOC, c, "bench.csv column"))
+    out += ["", "## Tables for pandas, Parquet and MATLAB", "",
+            "`veriloc_rt.load_run(DIR)` reads a run folder (a Monte Carlo's too) into tidy "
+            "pandas tables; `veriloc-rt export DIR --format parquet --out FOLDER` writes them "
+            "as `FOLDER/<table>.parquet`, `--format mat --out FILE.mat` as one MATLAB v5 file "
+            "with a struct per table (a column vector per column; text as cell arrays of "
+            "strings, `''` for none; missing numbers NaN). Neither writes into the run's own "
+            "files. Columns are read by name, so a newer run's extra CSV columns appear as "
+            "they are. `realisation` is 0 in a single run; in a Monte Carlo, each "
+            "realisation's index, and -1 for the top folder's aggregate `metrics.json`.", "",
+            "| table | one row per |", "| --- | --- |"]
+    if tuple(TABLES_DOC) != TABLES:
+        raise SystemExit(f"error: TABLES_DOC {tuple(TABLES_DOC)} is not load_run's {TABLES}")
+    out += [f"| `{k}` | {_cell(v)} |" for k, v in TABLES_DOC.items()]
     out += ["", "## `veriloc-rt scene`, `veriloc-rt keys`", "",
             "`scene` writes `scene.xml` (Mitsuba, loadable by Sionna RT), `meshes/*.ply` and "
             "`scene_top_view.png`. `keys` writes one AES, HMAC and Ed25519 key file per BS; "

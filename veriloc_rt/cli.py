@@ -464,6 +464,26 @@ def cmd_config(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    from .report.tables import export_mat, export_parquet, load_run
+
+    tables = load_run(args.dir)
+    out = Path(args.out)
+    if args.format == "parquet":
+        if out.exists() and not out.is_dir():
+            raise InputError("--out", f"{out} is not a folder (Parquet: one file per table)")
+        written = export_parquet(tables, out)
+    else:
+        if out.is_dir():
+            raise InputError("--out", f"{out} is a folder (MATLAB: one .mat file)")
+        if out.suffix != ".mat":
+            raise InputError("--out", f"{out}: the MATLAB file's name ends with .mat")
+        written = [export_mat(tables, out)]
+    rows = ", ".join(f"{k} {len(v)}" for k, v in tables.tables().items())
+    print(f"wrote {', '.join(str(w) for w in written)} (rows: {rows})")
+    return 0
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse with the one-line error of every other bad input: ``error: <flag>: <problem>``,
     exit code 2 (argparse's own prints the usage first). Subparsers inherit the class."""
@@ -494,9 +514,16 @@ def _browser_flags(p: argparse.ArgumentParser, port_help: str,
     p.add_argument("--no-browser", action="store_true", help=browser_help)
 
 
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
     p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario (no CONFIG: the built-in default)")
     r.add_argument("config", nargs="?", help="JSON config file")
@@ -590,6 +617,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--points", type=int, help="check: number of trajectory points")
     c.add_argument("--seed", type=int, help="check: override the config's seed")
     c.set_defaults(func=cmd_config)
+    x = sub.add_parser("export", help="a run folder's tables (points, per-TRP links, metrics, "
+                       "ROC) as Parquet files or one MATLAB .mat file")
+    x.add_argument("dir", help="the run's --out folder (a Monte Carlo's too)")
+    x.add_argument("--format", choices=("parquet", "mat"), required=True,
+                   help="parquet: one <table>.parquet per table in the folder --out; mat: one "
+                   "MATLAB v5 file --out with a struct per table")
+    x.add_argument("--out", required=True, help="output folder (parquet) or .mat file (mat); "
+                   "never inside the run's own files: pick a new name")
+    x.set_defaults(func=cmd_export)
     return p
 
 
