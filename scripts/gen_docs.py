@@ -585,6 +585,15 @@ def outputs_md() -> str:
     if tuple(TABLES_DOC) != TABLES:
         raise SystemExit(f"error: TABLES_DOC {tuple(TABLES_DOC)} is not load_run's {TABLES}")
     out += [f"| `{k}` | {_cell(v)} |" for k, v in TABLES_DOC.items()]
+    out += ["", "## Figures in another format: `veriloc-rt plot`", "",
+            "`veriloc-rt plot DIR --out FIGS --plot-format png|pdf|svg --dpi N` draws a "
+            "finished run's `outcomes`, `detection_rates`, `roc` and `<scenario>_timeseries` "
+            "again from its files into `FIGS` (default PDF; `--dpi`, default 300, sets the "
+            "resolution of PNG figures; a run writes PNG at 110 dpi). The run's own figures "
+            "are never overwritten. In every figure and table a detector flagged "
+            "uninformative shows `uninf.` instead of an attack rate, and detectors are named "
+            "as in the CSVs. From Python, `veriloc_rt.report.plots.plot_detection_rates("
+            "metrics, None, ax=ax)` draws onto a matplotlib `Axes` and returns its `Figure`."]
     out += ["", "## `veriloc-rt scene`, `veriloc-rt keys`", "",
             "`scene` writes `scene.xml` (Mitsuba, loadable by Sionna RT), `meshes/*.ply` and "
             "`scene_top_view.png`. `keys` writes one AES, HMAC and Ed25519 key file per BS; "

@@ -484,6 +484,14 @@ def cmd_export(args) -> int:
     return 0
 
 
+def cmd_plot(args) -> int:
+    from .report.replot import replot
+
+    written = replot(args.dir, args.out, args.plot_format, args.dpi)
+    print(f"wrote {len(written)} figures into {args.out}/ ({args.plot_format}, {args.dpi} dpi)")
+    return 0
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse with the one-line error of every other bad input: ``error: <flag>: <problem>``,
     exit code 2 (argparse's own prints the usage first). Subparsers inherit the class."""
@@ -626,6 +634,15 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("--out", required=True, help="output folder (parquet) or .mat file (mat); "
                    "never inside the run's own files: pick a new name")
     x.set_defaults(func=cmd_export)
+    pl = sub.add_parser("plot", help="a finished run's summary figures again (outcomes, "
+                        "detection rates, ROC, time series) in another format and resolution")
+    pl.add_argument("dir", help="the run's --out folder")
+    pl.add_argument("--out", required=True, help="output folder (not the run's own)")
+    pl.add_argument("--plot-format", choices=("png", "pdf", "svg"), default="pdf",
+                    help="file format (default pdf)")
+    pl.add_argument("--dpi", type=int, default=300, help="resolution of PNG figures, dots per "
+                    "inch (default 300; the run writes 110)")
+    pl.set_defaults(func=cmd_plot)
     return p
 
 

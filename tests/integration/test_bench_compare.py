@@ -13,6 +13,7 @@ import csv
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,7 @@ from scipy.stats import binomtest
 
 from veriloc_rt.studies.bench import ACCURACY_ALPHA, COST_RTOL, PARETO_METRIC
 from veriloc_rt.cli import main
+from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.fileio import TMP_MARK
 
 from .strict_json import assert_strict_json
@@ -158,6 +160,23 @@ def test_compare_writes_each_file_atomically(compare_out):
 
 def test_compare_files_and_numbers(compare_out):
     assert_strict_json(compare_out / "comparison.json")
+    md = (compare_out / "comparison.md").read_text()
+    # every table row has as many cells as its header (a bare "|" in a cell would split it)
+    assert "| \\|RSTD error\\|, m |" in md
+    table = []
+    for line in md.splitlines() + [""]:
+        if line.startswith("|"):
+            table.append(len(re.findall(r"(?<!\\)\|", line)))
+        elif table:
+            assert len(set(table)) == 1, table
+            table = []
+    data_ = json.loads((compare_out / "comparison.json").read_text())
+    for model, scen in data_["detectors"].items():
+        for s, m in scen.items():
+            for d in m.get("uninformative_detectors") or ():
+                row = next(ln for ln in md.splitlines() if ln.startswith(f"| {s} | {model} |"))
+                cells = [c.strip() for c in row.strip("|").split("|")]
+                assert cells[2 + DETECTORS.index(d)] == "uninf.", row
     for name in ("comparison.md", "comparison.json", "comparison_points.csv",
                  "comparison_channel.csv", "comparison_cdf.png", "comparison_detectors.png",
                  "raytrace/metrics.json", "uma/metrics.json"):

@@ -32,10 +32,11 @@ REALISATIONS = 2
 RUN_TIMEOUT_S = 300.0
 
 #: the fields that measure time or say where a run ran, per file name: removed before the
-#: comparison. ``timing_s`` of metrics.json and run.json: stage times, wall time, peak memory,
-#: ``workers``, ``scheduler``; ``raytrace_stats.wall_s`` of propagation_summary.json: the wall
-#: time of the propagation draw.
-TIMING_FIELDS = {"metrics.json": [("timing_s",)], "run.json": [("timing_s",)],
+#: comparison. ``timing_s`` of metrics.json and run.json: stage times and wall time;
+#: ``resources``: ``workers``, ``scheduler``, peak memory; ``raytrace_stats.wall_s`` of
+#: propagation_summary.json: the wall time of the propagation draw.
+TIMING_FIELDS = {"metrics.json": [("timing_s",), ("resources",)],
+                 "run.json": [("timing_s",), ("resources",)],
                  "propagation_summary.json": [("raytrace_stats", "wall_s")]}
 #: the placeholder of a run folder's absolute path, which run.json records (``scene_xml``)
 OUT = "<out>"

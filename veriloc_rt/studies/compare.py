@@ -384,7 +384,7 @@ def markdown(res: ComparisonResult) -> str:
                       ("toa_bias_m", "ToA bias vs LoS delay, m"),
                       ("toa_bias_los_m", "ToA bias, LoS links, m"),
                       ("toa_bias_nlos_m", "ToA bias, NLoS links, m"),
-                      ("rstd_abs_error_m", "|RSTD error|, m"), ("aoa_error_deg", "AoA error, deg")):
+                      ("rstd_abs_error_m", "\\|RSTD error\\|, m"), ("aoa_error_deg", "AoA error, deg")):
         a, b = er[rt_m].get(key), er[tw_m].get(key)
         if a is None or b is None:
             continue
@@ -399,9 +399,13 @@ def markdown(res: ComparisonResult) -> str:
             m = dt[model].get(scen) or {}
             if not m.get("num_points"):
                 continue
-            rates = " | ".join(_f(m["correct_decision_rate"].get(d)) for d in DETECTORS)
+            uninf = set(m.get("uninformative_detectors") or ())   # no detection to show
+            rates = " | ".join("uninf." if d in uninf else _f(m["correct_decision_rate"].get(d))
+                               for d in DETECTORS)
             outs = " | ".join(_f(m["outcomes"].get(o)) for o in OUTCOMES)
             L.append(f"| {scen} | {model} | {rates} | {outs} |")
+    L += ["", "`uninf.`: a detector that accepts under `detectors.min_benign_accept` of the "
+          "benign fixes; its rejections under attack are no detections."]
     return "\n".join(L) + "\n"
 
 
