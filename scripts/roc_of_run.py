@@ -20,7 +20,8 @@ import json
 import sys
 from pathlib import Path
 
-from veriloc_rt.config import config_from_dict
+from veriloc_rt.config import config_from_dict, patch_data
+from veriloc_rt.errors import InputError
 from veriloc_rt.fileio import atomic_write_text, json_text
 from veriloc_rt.report.detection import analyse_detection
 from veriloc_rt.report.results import read_rows, results_path
@@ -40,14 +41,14 @@ def main(argv: list[str] | None = None) -> int:
               "roc.csv and roc.png stay as the run wrote them)", file=sys.stderr)
         return 2
     data = json.loads((args.run_dir / "run.json").read_text())["config"]
-    for item in args.set:
-        key, value = item.split("=", 1)
-        *path, leaf = key.split(".")
-        d = data
-        for p in path:
-            d = d.setdefault(p, {})
-        d[leaf] = json.loads(value)
-    cfg = config_from_dict(data)
+    try:
+        for item in args.set:
+            key, value = item.split("=", 1)
+            data = patch_data(data, {key: json.loads(value)})
+        cfg = config_from_dict(data)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     rows = {s: read_rows(results_path(args.run_dir, s)) for s in cfg.run.scenarios
             if results_path(args.run_dir, s).exists()}
     analysis = analyse_detection(rows, cfg)

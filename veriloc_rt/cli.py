@@ -22,40 +22,17 @@ import sys
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
 from .errors import InputError
 from .fileio import json_text
+from .sim.progress import NoProgress, ProgressBar
 
 #: most BSs ``keys`` writes a set for: the BS id is 24 bits in the AES-CTR counter block
 MAX_KEY_SETS = 2**24
 
 
-class ProgressBar:
-    """The library's progress callback ``(label, done, total)`` as one tqdm bar per stage on
-    stderr (redrawn on a terminal; elsewhere, e.g. CI logs, updated every 10 s)."""
-
-    def __init__(self, stream=sys.stderr):
-        self.stream = stream
-        self.label: str | None = None
-        self.bar: tqdm | None = None
-        self.interval = 0.2 if getattr(stream, "isatty", lambda: False)() else 10.0
-
-    def __call__(self, label: str, done: int, total: int) -> None:
-        if label != self.label or self.bar is None:
-            self.close()
-            self.label = label
-            self.bar = tqdm(total=total, desc=f"{label:<12}", file=self.stream, ascii=True,
-                            mininterval=self.interval, dynamic_ncols=True, leave=True)
-        self.bar.total = total
-        self.bar.update(done - self.bar.n)
-        if done >= total:
-            self.close()
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-        self.bar, self.label = None, None
+def _bar(args):
+    """The progress callback of a command: bars on stderr, or none with ``-q/--no-progress``."""
+    return NoProgress() if getattr(args, "no_progress", False) else ProgressBar()
 
 
 def _load(config_path: str | None, points: int | None = None, seed: int | None = None):
@@ -136,7 +113,7 @@ def _run(cfg, out: Path, args) -> int:
         logging.getLogger("distributed").setLevel(logging.WARNING)
     if cfg.run.realisations > 1:
         return _run_montecarlo(cfg, out, args, workers)
-    bar = ProgressBar()
+    bar = _bar(args)
     try:
         res = run(cfg, out, progress=bar, resume=args.resume, workers=workers,
                   scheduler=args.scheduler, force=args.force)
@@ -180,7 +157,7 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
              else "one after the other")
     print(f"Monte Carlo: {n} realisations of {cfg.trajectory.num_points} points, {where}",
           flush=True)
-    bar = ProgressBar()
+    bar = _bar(args)
     try:
         res = run_montecarlo(cfg, out, progress=bar, workers=workers,
                              scheduler=args.scheduler, resume=args.resume, force=args.force)
@@ -354,7 +331,7 @@ def cmd_bench(args) -> int:
                          "need 'raytrace')")
     _out(args.out)
     t = time.perf_counter()
-    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar(),
+    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=_bar(args),
                     groups=tuple(args.only) if args.only else None)
     files = write_bench(res, args.out)
     print(markdown_table(res))
@@ -371,7 +348,7 @@ def cmd_compare(args) -> int:
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise InputError("--workers", f"got {workers}, expected an integer >= 1")
-    res = run_compare(cfg, args.out, progress=ProgressBar(), workers=workers,
+    res = run_compare(cfg, args.out, progress=_bar(args), workers=workers,
                       match_pathloss=args.match_pathloss)
     print(format_comparison(res))
     print(f"wrote {args.out}/ (comparison.md, comparison.json, comparison_*.csv, *.png, "
@@ -384,7 +361,7 @@ def cmd_validate(args) -> int:
 
     cfg = _load(args.config, args.points)
     _out(args.out)
-    res = run_validate(cfg, args.out, progress=ProgressBar())
+    res = run_validate(cfg, args.out, progress=_bar(args))
     print(format_validation(res))
     st = res.summary["raytrace_stats"]
     print(f"ray tracing {res.timing_s['ray_tracing']:.1f} s ({st['cache_hits']} of "
@@ -528,10 +505,17 @@ def _version() -> str:
     return __version__
 
 
+def _quiet_flag(p: argparse.ArgumentParser, default=argparse.SUPPRESS) -> None:
+    """``-q/--no-progress``, before or after the command's name."""
+    p.add_argument("-q", "--no-progress", dest="no_progress", action="store_true",
+                   default=default, help="no progress bars (the results are printed as usual)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
     p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    _quiet_flag(p, False)
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario (no CONFIG: the built-in default)")
     r.add_argument("config", nargs="?", help="JSON config file")
@@ -553,6 +537,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
     _browser_flags(r, "--live: port (default 8765, or a free one)",
                    "--live: do not open a browser")
+    _quiet_flag(r)
     r.set_defaults(func=cmd_run)
     w = sub.add_parser("view", help="serve the live view of a running or finished run folder "
                        "on 127.0.0.1")
@@ -597,6 +582,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--match-pathloss", action="store_true", help="shift the twin's path loss "
                     "so that its median equals the traced one, LoS and NLoS links apart "
                     "(separates mean loss from multipath structure)")
+    _quiet_flag(cp)
     cp.set_defaults(func=cmd_compare)
     b = sub.add_parser("bench", help="sweep the fidelity settings: time vs accuracy table and "
                        "chart with the Pareto front")
@@ -608,6 +594,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "--quick, else 40)")
     b.add_argument("--only", nargs="+", choices=("raytrace", "waveform"),
                    help="sweep only these groups of knobs")
+    _quiet_flag(b)
     b.set_defaults(func=cmd_bench)
     v = sub.add_parser("validate", help="the scene's traced path loss against distance beside "
                        "ITU-R P.1411, COST-231 Walfisch-Ikegami, TR 38.901 UMa/UMi NLOS and free "
@@ -616,6 +603,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(its propagation.model is ignored: the links are ray traced)")
     v.add_argument("--out", required=True, help="output folder")
     v.add_argument("--points", type=int, help="number of trajectory points")
+    _quiet_flag(v)
     v.set_defaults(func=cmd_validate)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
     c.add_argument("action", choices=("schema", "show", "check"),

@@ -229,3 +229,12 @@ def test_plot_command_redraws_in_the_chosen_format_and_dpi(run_dir, tmp_path):
         assert all((tmp_path / fmt / n).read_bytes().startswith(magic) for n in names)
     assert main(["plot", str(run_dir), "--out", str(run_dir)]) == 2   # never the run's folder
     assert {p.name: p.read_bytes() for p in run_dir.iterdir() if p.is_file()} == before
+
+
+def test_run_with_progress_true_draws_bars_on_stderr(tmp_path, capsys):
+    cfg = veriloc_rt.Config().updated({"propagation.model": "uma", "trajectory.num_points": 4,
+                                       "run.scenarios": ["none"]})
+    res = veriloc_rt.run(cfg, tmp_path / "r", progress=True)
+    err = capsys.readouterr().err
+    assert "none" in err and "4/4" in err
+    assert res.metrics["scenarios"]["none"]["num_points"] == 4

@@ -48,6 +48,7 @@ from .executors import DaskChains, ForkPool, LocalChains, check_workers, schedul
 from .chain_store import ChainStore, config_digest
 from .run_folder import (CHAIN_FILE, MAX_RESULTS_BYTES, check_fresh, check_resume,
                          clear_run_files, locked, mark_stopped, run_keys, write_run_json)
+from .progress import progress_callback
 from .runner import ScenarioRunner
 
 log = logging.getLogger(__name__)
@@ -116,7 +117,7 @@ def _peak_rss_mib() -> dict:
             "peak_rss_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
 
 
-def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
+def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | bool | None = None,
         resume: bool = False, workers: int = 1, scheduler=None, force: bool = False,
         cache_dir: str | Path | None = "default") -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
@@ -130,7 +131,8 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     the inputs are checked and the geometry is built. A run that ends unfinished (an
     exception, Ctrl-C, SIGTERM) records the status ``stopped`` in ``run.json``.
 
-    :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
+    :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar); True:
+        a progress bar per stage on stderr (tqdm), as the CLI shows
     :param resume: keep the rows and chain results already in ``out_dir`` and continue after
         them (also after a stop during ray tracing: ``run.json`` is written before it)
     :param workers: processes computing the per-point chains (forked; the detectors, which
@@ -147,6 +149,14 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
         or results CSV on resume)
     """
     check_workers(workers, scheduler)
+    bar = progress if progress is True else None
+    progress = progress_callback(progress)
+    if bar is not None:
+        bar = progress
+        try:
+            return run(cfg, out_dir, progress, resume, workers, scheduler, force, cache_dir)
+        finally:
+            bar.close()
     # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
     # relative --out left relative to the caller's working directory
     out = Path(out_dir).resolve() if out_dir is not None else None
