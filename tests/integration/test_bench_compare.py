@@ -29,7 +29,7 @@ from .strict_json import assert_strict_json
 
 CONFIG = str(Path(__file__).resolve().parents[2] / "configs" / "ci-tiny.json")
 
-pytestmark = pytest.mark.raytrace
+pytestmark = [pytest.mark.raytrace, pytest.mark.heavy]
 #: the files each command placed by a rename (os.replace), by command
 RENAMED: dict[str, set] = {}
 

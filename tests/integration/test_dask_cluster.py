@@ -22,6 +22,9 @@ from veriloc_rt.sim.process_cluster import process_cluster
 
 from .test_cli import ROOT
 
+#: real Dask clusters of separate processes, ~1.5 min: CI's second step (-m heavy)
+pytestmark = pytest.mark.heavy
+
 #: small UMa run (path loss only, no tracing), as in test_montecarlo.py: 8 points, attack
 #: window points 2..5; 2 realisations for the Monte Carlo
 SMALL = {"propagation": {"model": "uma", "uma_mode": "pathloss_only"},

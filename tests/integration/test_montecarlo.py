@@ -55,6 +55,7 @@ def serial_mc(tmp_path_factory):
     return f, tmp / "serial"
 
 
+@pytest.mark.heavy
 def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
     """Acceptance (issue #6): realisations as tasks on a 2-worker LocalCluster == serial."""
     f, serial = serial_mc
@@ -98,6 +99,7 @@ def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
     assert r1["seed"] == info["realisations"][1]["seed"] and r1["run"]["realisations"] == 1
 
 
+@pytest.mark.heavy
 def test_single_run_chunks_on_a_scheduler_give_the_serial_result(serial_mc, tmp_path):
     """``--scheduler`` with one realisation: trajectory chunks as tasks, detectors in order;
     the reference is the serial Monte Carlo's realisation 0 (the plain run)."""

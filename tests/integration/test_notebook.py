@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import nbformat
+import pytest
 from nbclient import NotebookClient
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -13,6 +14,7 @@ ROOT = Path(__file__).resolve().parents[2]
 CELL_TIMEOUT_S = 600
 
 
+@pytest.mark.heavy
 def test_quickstart_notebook_runs(tmp_path, monkeypatch):
     monkeypatch.setenv("VERILOC_EXAMPLE_OUT", str(tmp_path))
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
