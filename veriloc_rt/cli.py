@@ -191,10 +191,13 @@ def format_montecarlo(metrics: dict) -> str:
     for name, m in metrics["scenarios"].items():
         if not m.get("num_points"):
             continue
-        rates = " ".join(_pm(m, "correct_decision_rate", d) for d in DETECTORS)
+        uninf = m.get("uninformative_detectors") or ()
+        rates = " ".join(f"{'uninf.':>11s}" if d in uninf else _pm(m, "correct_decision_rate", d)
+                         for d in DETECTORS)
         outs = " ".join(_pm(m, "outcomes", k) for k in OUTCOMES)
         lines.append(f"{name:11s} {rates}  | {outs}")
-    lines.append("correct-decision rate and outcomes in %, as in a single run")
+    lines.append("correct-decision rate and outcomes in %, as in a single run; uninf.: flagged "
+                 "uninformative in at least one realisation")
     return "\n".join(lines)
 
 

@@ -151,7 +151,8 @@ def _value(d: dict, key: str) -> float:
 def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> Path:
     """Grouped bars of the mean correct-decision rate per scenario and detector, with the
     ``ci95`` intervals as error bars, drawn clipped to 0..100 % (a rate cannot leave it; the
-    t-interval of few realisations can); none below two realisations."""
+    t-interval of few realisations can); none below two realisations. A detector a scenario
+    flags uninformative (in any realisation) gets no bar and an "uninf." label."""
     sc = metrics["scenarios"]
     names = [s for s in sc if sc[s].get("correct_decision_rate")]
     width = 0.16
@@ -160,16 +161,19 @@ def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> 
         x = np.arange(len(names), dtype=float)
         for k, det in enumerate(DETECTORS):
             xs = x + (k - (len(DETECTORS) - 1) / 2.0) * width
-            mean = np.array([_num(sc[s]["correct_decision_rate"].get(det)) for s in names])
+            mean = np.array([np.nan if det in _uninformative(metrics, s)   # no attack bar
+                             else _num(sc[s]["correct_decision_rate"].get(det)) for s in names])
             half = np.nan_to_num([_num(sc[s]["ci95"].get("correct_decision_rate", {}).get(det))
                                   for s in names])
+            half[np.isnan(mean)] = 0.0   # no bar, no error bar
             v = np.nan_to_num(mean)
             err = np.array([np.minimum(half, v), np.minimum(half, 100.0 - v)])  # [2, scenarios]
             label, colour = _DETECTOR_STYLE[det]
             ax.bar(xs, v, width, color=colour, label=label, yerr=err, capsize=2.0,
                    error_kw={"lw": 0.8})
-            for xi, m, top in zip(xs, mean, v + err[1]):
-                ax.text(xi, top + 1.0, "n/a" if np.isnan(m) else f"{m:.1f}", rotation=90,
+            for xi, m, top, s in zip(xs, mean, v + err[1], names):
+                tag = "uninf." if det in _uninformative(metrics, s) else "n/a"
+                ax.text(xi, top + 1.0, tag if np.isnan(m) else f"{m:.1f}", rotation=90,
                         ha="center", va="bottom", fontsize=6)
         ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s in names])
         ax.set_xlim(-0.6, max(len(names), 1) - 0.4)

@@ -126,6 +126,11 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
             for k in names:
                 agg[g][k], ci[g][k], defined[g][k] = mean_ci([(m.get(g) or {}).get(k)
                                                               for m in ms], level)
+        flagged = [d for d in dict.fromkeys(d for m in ms
+                                            for d in m.get("uninformative_detectors") or ())]
+        if any("uninformative_detectors" in m for m in ms):
+            # flagged in any realisation: its mean attack rate mixes in no-detections
+            agg["uninformative_detectors"] = flagged
         agg["realisations"] = n
         agg["ci95"] = ci
         agg["realisations_defined"] = defined
