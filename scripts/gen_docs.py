@@ -528,7 +528,8 @@ def outputs_md() -> str:
             "files (its `run.json` reproduces it alone). The top folder gets `metrics.json` "
             "(the single-run keys, each the mean over the realisations where it is defined; "
             "per scenario `ci95`, the Student-t 95 % half-width in the same layout, null below "
-            "two realisations, and `realisations_defined`; `position_error_m` is the mean of "
+            "two realisations, `realisations_defined`, and `uninformative_detectors`: those "
+            "flagged in any realisation, shown `uninf.` without a mean attack rate; `position_error_m` is the mean of "
             "the realisations' percentiles, not a pooled percentile), "
             "`montecarlo_detection_rates.png` (mean rates with CI bars), `outcomes.png`, "
             "`run.json` and `montecarlo.csv`, one row per realisation and scenario:", ""]
