@@ -492,6 +492,13 @@ def outputs_md() -> str:
            "| `<scenario>_map.png` | true and estimated path, BSs, the adversary's path |",
            "| `scene_top_view.png` | the scene from above: buildings, BSs, trajectory |",
            "| `scene/` | the scene the run used (`scene.xml`, `meshes/*.ply`) |",
+           "| `cir_bs_to_ue.npz`, `cir_bs_to_adversary.npz`, `cir_adversary_to_ue.npz` | with "
+           "`--save-cir` only: the run's channel impulse responses (`CIR.to_arrays`: delays, "
+           "gains per UE element, angles, Doppler, validity, per point and link slot); "
+           "`CIR.from_arrays(numpy.load(path))` reads one back and `.to_sionna(point)` gives "
+           "Sionna RT's `Paths.cir` layout, `a` [1, num_rx_ant, num_tx, 1, num_paths, "
+           "num_time_steps] and `tau` [1, num_tx, num_paths] (invalid paths: `a` 0, `tau` "
+           "-1; delays normalised to each link's first path unless `normalize_delays=False`) |",
            "| `chains.bin` | every point's chain results, appended as they are computed, each "
            "record with a SHA-256: `--resume` reuses them (the attack scenarios' chains that "
            "`none` computes included), so a resumed run computes only what no run computed "

@@ -112,11 +112,14 @@ def _run(cfg, out: Path, args) -> int:
         # Dask's start-up and connection lines only with -vv
         logging.getLogger("distributed").setLevel(logging.WARNING)
     if cfg.run.realisations > 1:
+        if args.save_cir:
+            raise InputError("--save-cir", "a single run's only (run.realisations 1): run a "
+                             "realisation's config from its run.json with --save-cir")
         return _run_montecarlo(cfg, out, args, workers)
     bar = _bar(args)
     try:
         res = run(cfg, out, progress=bar, resume=args.resume, workers=workers,
-                  scheduler=args.scheduler, force=args.force)
+                  scheduler=args.scheduler, force=args.force, save_cir=args.save_cir)
     finally:
         bar.close()     # a stopped or failed run's message then starts a line of its own
     s = res.summary
@@ -536,6 +539,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true",
                    help="write into a non-empty --out: replace a finished run there (or "
                    "the points of an unfinished one), or write beside other files")
+    r.add_argument("--save-cir", action="store_true", help="also write the run's channel "
+                   "impulse responses into --out (cir_<links>.npz; CIR.to_sionna gives Sionna "
+                   "RT's (a, tau) layout)")
     r.add_argument("--live", action="store_true", help="serve the live view of --out on "
                    "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
     _browser_flags(r, "--live: port (default 8765, or a free one)",

@@ -238,3 +238,31 @@ def test_run_with_progress_true_draws_bars_on_stderr(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "none" in err and "4/4" in err
     assert res.metrics["scenarios"]["none"]["num_points"] == 4
+
+
+def test_save_cir_writes_the_run_cirs_for_sionna(tmp_path):
+    import numpy as np
+
+    from veriloc_rt.propagation.cir import CIR
+
+    cfg = {"seed": 3, "propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+           "trajectory": {"num_points": 3}, "run": {"scenarios": ["none"]}}
+    (tmp_path / "c.json").write_text(json.dumps(cfg))
+    assert main(["run", str(tmp_path / "c.json"), "--out", str(tmp_path / "r"), "-q",
+                 "--save-cir"]) == 0
+    res_cir = {}
+    for name, slots in (("bs_to_ue", 3), ("bs_to_adversary", 3), ("adversary_to_ue", 1)):
+        with np.load(tmp_path / "r" / f"cir_{name}.npz") as z:
+            res_cir[name] = CIR.from_arrays(dict(z))
+        assert res_cir[name].num_points == 3 and res_cir[name].num_tx == slots
+    c = res_cir["bs_to_ue"]
+    a, tau = c.to_sionna(2, normalize_delays=False)
+    assert a.shape == (1, c.num_ant, 3, 1, c.num_paths, 1) and tau.shape == (1, 3, c.num_paths)
+    # the saved delays are the run's: the first path of each serving link (UMa path loss only:
+    # the line-of-sight delay) equals its straight-line distance / c
+    first = np.where(tau[0] >= 0, tau[0], np.inf).min(axis=-1)
+    np.testing.assert_allclose(first, c.geometric_delay()[2], rtol=1e-12)
+    # a second run into the folder (--force) clears them unless asked again
+    assert main(["run", str(tmp_path / "c.json"), "--out", str(tmp_path / "r"), "-q",
+                 "--force"]) == 0
+    assert not list((tmp_path / "r").glob("cir_*.npz"))

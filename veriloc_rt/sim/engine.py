@@ -31,7 +31,7 @@ import numpy as np
 
 from ..config import Config
 from ..errors import InputError
-from ..fileio import atomic_write_text, json_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import read_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import STOCHASTIC_MODELS, stochastic_propagation
@@ -119,7 +119,7 @@ def _peak_rss_mib() -> dict:
 
 def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | bool | None = None,
         resume: bool = False, workers: int = 1, scheduler=None, force: bool = False,
-        cache_dir: str | Path | None = "default") -> Results:
+        cache_dir: str | Path | None = "default", save_cir: bool = False) -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
 
     One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
@@ -144,6 +144,9 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
     :param cache_dir: the ray tracer's cache folder: "default" is the config's
         ``propagation.raytrace.cache_dir`` (a relative one under this process's working
         directory), None none
+    :param save_cir: also write the run's CIRs into ``out_dir``: ``cir_bs_to_ue.npz``,
+        ``cir_bs_to_adversary.npz``, ``cir_adversary_to_ue.npz`` (:meth:`CIR.to_arrays`; read
+        back with ``CIR.from_arrays(np.load(path))``, then ``.to_sionna(point)``)
     :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``,
         ``<file>: ...`` (a file of the folder that is not a regular one, a damaged ``run.json``
         or results CSV on resume)
@@ -154,7 +157,8 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
     if bar is not None:
         bar = progress
         try:
-            return run(cfg, out_dir, progress, resume, workers, scheduler, force, cache_dir)
+            return run(cfg, out_dir, progress, resume, workers, scheduler, force, cache_dir,
+                       save_cir)
         finally:
             bar.close()
     # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
@@ -174,7 +178,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
             else:
                 check_fresh(out, cfg, force)
         try:
-            return _run(cfg, out, progress, resume, workers, client, cache_dir)
+            return _run(cfg, out, progress, resume, workers, client, cache_dir, save_cir)
         except BaseException:   # Ctrl-C, SIGTERM, a full disk, an error: resumable
             if out is not None:
                 mark_stopped(out)
@@ -182,7 +186,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
 
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
-         client, cache_dir: str | Path | None = "default") -> Results:
+         client, cache_dir: str | Path | None = "default", save_cir: bool = False) -> Results:
     timing: dict = {}     # seconds only
     resources: dict = {}  # workers, scheduler, peak memory
     t0 = time.perf_counter()
@@ -207,6 +211,11 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     summary = propagation_summary(geometry, prop)
     if out:
         atomic_write_text(out / "propagation_summary.json", json_text(summary))
+        if save_cir:
+            for name, cir in (("bs_to_ue", prop.bs_ue), ("bs_to_adversary", prop.bs_adv),
+                              ("adversary_to_ue", prop.adv_ue)):
+                with atomic_output(out / f"cir_{name}.npz") as tmp:
+                    np.savez_compressed(tmp, **cir.to_arrays())
         write_run_json(out, cfg, "running", timing, fields)
 
     runner = ScenarioRunner(cfg, geometry, prop, keys)

@@ -53,6 +53,8 @@ CHAIN_FILE = "chains.bin"
 RUN_FILES = ("run.json", "metrics.json", "propagation_summary.json", CHAIN_FILE, "outcomes.png",
              "detection_rates.png", "scene_top_view.png", "montecarlo.csv",
              "montecarlo_detection_rates.png", "roc.csv", "roc.png",
+             *(f"cir_{links}.npz" for links in ("bs_to_ue", "bs_to_adversary",
+                                                "adversary_to_ue")),
              *(f"{s}_{kind}" for s in SCENARIOS
                for kind in ("results.csv", "timeseries.png", "map.png")))
 
