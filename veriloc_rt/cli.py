@@ -16,7 +16,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import argparse
 import errno
 import gc
-import json
 import logging
 import sys
 import time
