@@ -45,7 +45,6 @@ figures of the default run are in docs/convergence.md.
 from __future__ import annotations
 
 import argparse
-import copy
 import hashlib
 import json
 import os
@@ -116,16 +115,13 @@ def label(s: dict) -> str:
 
 
 def patched(data: dict, patch: dict) -> dict:
-    data = copy.deepcopy(data)
-    for path, value in patch.items():
-        node = data
-        keys = path.split(".")
-        for k in keys[:-1]:
-            node = node[k]
-        if keys[-1] not in node:
-            raise SystemExit(f"error: {path}: no such config field")
-        node[keys[-1]] = value
-    return data
+    from veriloc_rt.config import patch_data
+    from veriloc_rt.errors import InputError
+
+    try:
+        return patch_data(data, patch, must_exist=True)
+    except InputError as exc:
+        raise SystemExit(f"error: {exc}") from None
 
 
 # -- tracing (child process) -----------------------------------------------------------------

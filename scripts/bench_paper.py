@@ -48,7 +48,8 @@ def run_one(name: str, cfg: dict, out: Path, workers: int) -> dict:
     (out / "stderr.txt").write_text(proc.stderr)
     if proc.returncode != 0:
         raise SystemExit(f"error: {name} run failed (exit {proc.returncode}); see {out}/stderr.txt")
-    timing = json.loads((out / "run" / "metrics.json").read_text())["timing_s"]
+    metrics = json.loads((out / "run" / "metrics.json").read_text())
+    timing = {**metrics["timing_s"], **metrics.get("resources", {})}
     timing["wall"] = wall
     summary = out / "run" / "propagation_summary.json"
     stats = json.loads(summary.read_text()).get("raytrace_stats") if summary.exists() else None

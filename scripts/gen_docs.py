@@ -40,6 +40,7 @@ if str(ROOT) not in sys.path:  # run as a script from a checkout without install
 
 from veriloc_rt.sim import montecarlo  # noqa: E402
 from veriloc_rt.studies import bench  # noqa: E402
+from veriloc_rt.report.tables import TABLES  # noqa: E402
 from veriloc_rt.config import Config, config_schema, config_to_dict  # noqa: E402
 from veriloc_rt.phy.chain import STAGES  # noqa: E402
 from veriloc_rt.report.results import (CSV_COLUMNS, LINK_COLUMNS, TRP_COLUMNS,  # noqa: E402
@@ -266,7 +267,11 @@ METRICS_DOC = {
 METRICS_TOP_DOC = {
     "scenarios": "one object per scenario (`none`, `fbs`, `meaconing`, `jamming`) with the "
                  "keys below",
-    "timing_s": "wall and CPU seconds per stage (below), the worker count and the peak memory",
+    "timing_s": "wall and CPU seconds per stage (below): seconds only",
+    "resources": "`workers` (processes or Dask threads that computed the chains), `scheduler` "
+                 "(the Dask scheduler's address, only with `--scheduler`), "
+                 "`peak_rss_main_mib` and `peak_rss_worker_mib` (peak resident memory of the "
+                 "main process and of the largest worker, MiB; single runs only)",
     "propagation_model": "`raytrace` or `uma` (the config's `propagation.model`)",
     "doppler_hz": "`max_path`: the largest Doppler magnitude the UE receives in the run (its "
                   "BS -> UE paths; with an attack the adversary's paths, relayed ones with both "
@@ -314,11 +319,28 @@ TIMING_DOC = {
     "chain_total": "the positioning chain, CPU s summed over the workers",
     "adversary_total": "the adversary's signal (spoofer, relay, jammer), CPU s",
     "detectors_total": "the five detectors, CPU s (in the main process)",
-    "workers": "processes (or Dask threads) that computed the chains",
-    "scheduler": "the Dask scheduler's address (only with `--scheduler`)",
     "total": "the whole run (wall s)",
-    "peak_rss_main_mib": "peak resident memory of the main process, MiB",
-    "peak_rss_worker_mib": "peak resident memory of the largest worker, MiB",
+}
+
+#: the tables of veriloc_rt.load_run (veriloc_rt/report/tables.py TABLES)
+TABLES_DOC = {
+    "points": "point of a `<scenario>_results.csv`: `realisation`, `scenario`, then the CSV's "
+              "columns",
+    "links": "row of a `<scenario>_links.csv` (per-TRP links), the same way (empty without "
+             "such files)",
+    "metrics": "leaf of `metrics.json`: `realisation`, `key` (dotted path, list items by "
+               "index), `value` (the number; `inf` for `\"inf\"`, NaN for null or text), "
+               "`text` (a string or a list of strings joined by commas, else empty)",
+    "scenario_metrics": "share or error percentile of `scenarios.<name>`: `realisation`, "
+                        "`scenario`, `metric` (`outcomes`, `correct_decision_rate`, ...), "
+                        "`item` (outcome, detector or percentile), `value`, `unit` (`%` or "
+                        "`m`)",
+    "roc": "vertex of `roc.csv`: `realisation`, `detector`, `attack`, `threshold`, "
+           "`benign_accept`, `attack_reject`",
+    "operating_points": "`roc.attacks.<attack>.<decision>`: `realisation`, `attack`, "
+                        "`detector`, `auc`, `threshold`, `benign_accept`, `attack_reject` "
+                        "(fractions), `uninformative` (the detector is flagged: its "
+                        "`attack_reject` is no detection)",
 }
 
 #: what each chain stage covers (phy/chain/positioning.py STAGES)
@@ -458,6 +480,28 @@ def outputs_md() -> str:
            "that writes them; the file lists and the JSON layouts of `run.json` and "
            "`propagation_summary.json` are described by hand from `veriloc_rt/sim/engine.py`, "
            "`compare.py` and `validate.py`. Units: SI, or the unit in the name.", "",
+           "## JSON files and units", "",
+           "Every JSON file the package writes (`metrics.json`, `run.json`, "
+           "`propagation_summary.json`, `comparison.json`, `bench.json`, `validation.json`, "
+           "`scene.json`, `veriloc-rt schema` and `config` output) is strict JSON (RFC 8259) "
+           "that any parser reads (`JSON.parse`, `jq`, MATLAB's `jsondecode`, Python's "
+           "`json`): JSON has no infinite or not-a-number value, so a float that is "
+           "`+inf` or `-inf` (a threshold at the reject-all end of a ROC, a rule that "
+           "rejects whatever the threshold) is written as the **string** `\"inf\"` or "
+           "`\"-inf\"` (`float(\"inf\")` and MATLAB's `str2double` read it back), and a "
+           "not-a-number as `null` (no value), as is a percentage of no points.", "",
+           "Units: a number is in SI units or in the unit its key's name ends with "
+           "(`_m`, `_s`, `_hz`, `_db`, `_mib`, `_pct` = percent). The two shares without a "
+           "unit in their name are fixed per block: under `scenarios.<name>` "
+           "(`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
+           "`benign_phase_false_alarm_rate`) every share is in **percent** (0-100, as the "
+           "paper's tables); under `roc` (`benign_accept`, `attack_reject`, "
+           "`false_alarm`, `min_benign_accept`, `auc`) every share is a **fraction** "
+           "(0-1), as ROC axes are. `timing_s` holds seconds only; counts and memory are in "
+           "`resources`. `run.json` records paths inside the run folder relative to it "
+           "(`scene_xml`: `scene/scene.xml`), the package versions (`versions`) and "
+           "`git_revision` (the commit of the package's git checkout, `-dirty` appended "
+           "when its tracked files differ; null for an installed copy).", "",
            "## `veriloc-rt run`", "",
            "| file | holds |", "| --- | --- |",
            "| `<scenario>_results.csv` | one row per trajectory point, written and flushed as "
@@ -470,8 +514,8 @@ def outputs_md() -> str:
            "| `run.json` | the resolved config (every default filled in), `seed`, `status` "
            "(`running` until the end, then `complete`; `stopped` when it ends unfinished: "
            "Ctrl-C, SIGTERM, an error), `versions` (veriloc-rt, Sionna RT, "
-           "Mitsuba, Dr.Jit, NumPy, ...), `timing_s`, `scene_xml`. `--resume` compares its "
-           "config with the new one |",
+           "Mitsuba, Dr.Jit, NumPy, ...), `git_revision`, `timing_s`, `resources`, `scene_xml` "
+           "(relative to the run folder). `--resume` compares its config with the new one |",
            "| `propagation_summary.json` | the scene (buildings or triangles, BSs, points, the "
            "UE's path length and mean speed) and, per link set (`bs_to_ue`, `bs_to_adversary`, "
            "`adversary_to_ue`), links, share with a path, LoS share, paths per link, rms delay "
@@ -491,6 +535,13 @@ def outputs_md() -> str:
            "| `<scenario>_map.png` | true and estimated path, BSs, the adversary's path |",
            "| `scene_top_view.png` | the scene from above: buildings, BSs, trajectory |",
            "| `scene/` | the scene the run used (`scene.xml`, `meshes/*.ply`) |",
+           "| `cir_bs_to_ue.npz`, `cir_bs_to_adversary.npz`, `cir_adversary_to_ue.npz` | with "
+           "`--save-cir` only: the run's channel impulse responses (`CIR.to_arrays`: delays, "
+           "gains per UE element, angles, Doppler, validity, per point and link slot); "
+           "`CIR.from_arrays(numpy.load(path))` reads one back and `.to_sionna(point)` gives "
+           "Sionna RT's `Paths.cir` layout, `a` [1, num_rx_ant, num_tx, 1, num_paths, "
+           "num_time_steps] and `tau` [1, num_tx, num_paths] (invalid paths: `a` 0, `tau` "
+           "-1; delays normalised to each link's first path unless `normalize_delays=False`) |",
            "| `chains.bin` | every point's chain results, appended as they are computed, each "
            "record with a SHA-256: `--resume` reuses them (the attack scenarios' chains that "
            "`none` computes included), so a resumed run computes only what no run computed "
@@ -534,7 +585,8 @@ def outputs_md() -> str:
             "files (its `run.json` reproduces it alone). The top folder gets `metrics.json` "
             "(the single-run keys, each the mean over the realisations where it is defined; "
             "per scenario `ci95`, the Student-t 95 % half-width in the same layout, null below "
-            "two realisations, and `realisations_defined`; `position_error_m` is the mean of "
+            "two realisations, `realisations_defined`, and `uninformative_detectors`: those "
+            "flagged in any realisation, shown `uninf.` without a mean attack rate; `position_error_m` is the mean of "
             "the realisations' percentiles, not a pooled percentile), "
             "`montecarlo_detection_rates.png` (mean rates with CI bars), `outcomes.png`, "
             "`run.json` and `montecarlo.csv`, one row per realisation and scenario:", ""]
@@ -578,6 +630,28 @@ def outputs_md() -> str:
             "marked) and `bench.csv`, one row per setting:", ""]
     out += _columns_table(bench.CSV_FIELDS,
                           lambda c: _describe(BENCH_DOC, c, "bench.csv column"))
+    out += ["", "## Tables for pandas, Parquet and MATLAB", "",
+            "`veriloc_rt.load_run(DIR)` reads a run folder (a Monte Carlo's too) into tidy "
+            "pandas tables; `veriloc-rt export DIR --format parquet --out FOLDER` writes them "
+            "as `FOLDER/<table>.parquet`, `--format mat --out FILE.mat` as one MATLAB v5 file "
+            "with a struct per table (a column vector per column; text as cell arrays of "
+            "strings, `''` for none; missing numbers NaN). Neither writes into the run's own "
+            "files. Columns are read by name, so a newer run's extra CSV columns appear as "
+            "they are. `realisation` is 0 in a single run; in a Monte Carlo, each "
+            "realisation's index, and -1 for the top folder's aggregate `metrics.json`.", "",
+            "| table | one row per |", "| --- | --- |"]
+    if tuple(TABLES_DOC) != TABLES:
+        raise SystemExit(f"error: TABLES_DOC {tuple(TABLES_DOC)} is not load_run's {TABLES}")
+    out += [f"| `{k}` | {_cell(v)} |" for k, v in TABLES_DOC.items()]
+    out += ["", "## Figures in another format: `veriloc-rt plot`", "",
+            "`veriloc-rt plot DIR --out FIGS --plot-format png|pdf|svg --dpi N` draws a "
+            "finished run's `outcomes`, `detection_rates`, `roc` and `<scenario>_timeseries` "
+            "again from its files into `FIGS` (default PDF; `--dpi`, default 300, sets the "
+            "resolution of PNG figures; a run writes PNG at 110 dpi). The run's own figures "
+            "are never overwritten. In every figure and table a detector flagged "
+            "uninformative shows `uninf.` instead of an attack rate, and detectors are named "
+            "as in the CSVs. From Python, `veriloc_rt.report.plots.plot_detection_rates("
+            "metrics, None, ax=ax)` draws onto a matplotlib `Axes` and returns its `Figure`."]
     out += ["", "## `veriloc-rt scene`, `veriloc-rt keys`", "",
             "`scene` writes `scene.xml` (Mitsuba, loadable by Sionna RT), `meshes/*.ply` and "
             "`scene_top_view.png`. `keys` writes one AES, HMAC and Ed25519 key file per BS; "

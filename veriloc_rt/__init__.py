@@ -24,6 +24,10 @@ _EXPORTS = {
     "prs_c_init": "veriloc_rt.phy.nr.prs",
     "prs_sequence": "veriloc_rt.phy.nr.prs",
     "uma_pathloss_db": "veriloc_rt.propagation.uma",
+    "load_run": "veriloc_rt.report.tables",
+    "RunTables": "veriloc_rt.report.tables",
+    "export_parquet": "veriloc_rt.report.tables",
+    "export_mat": "veriloc_rt.report.tables",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -34,3 +38,8 @@ def __getattr__(name: str) -> Any:
     if module is None:
         raise AttributeError(f"module 'veriloc_rt' has no attribute {name!r}")
     return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    """The module's own names and the lazy exports (``dir(veriloc_rt)``, tab completion)."""
+    return sorted(set(globals()) | set(__all__))

@@ -16,45 +16,22 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import argparse
 import errno
 import gc
-import json
 import logging
 import sys
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
 from .errors import InputError
+from .fileio import json_text
+from .sim.progress import NoProgress, ProgressBar
 
 #: most BSs ``keys`` writes a set for: the BS id is 24 bits in the AES-CTR counter block
 MAX_KEY_SETS = 2**24
 
 
-class ProgressBar:
-    """The library's progress callback ``(label, done, total)`` as one tqdm bar per stage on
-    stderr (redrawn on a terminal; elsewhere, e.g. CI logs, updated every 10 s)."""
-
-    def __init__(self, stream=sys.stderr):
-        self.stream = stream
-        self.label: str | None = None
-        self.bar: tqdm | None = None
-        self.interval = 0.2 if getattr(stream, "isatty", lambda: False)() else 10.0
-
-    def __call__(self, label: str, done: int, total: int) -> None:
-        if label != self.label or self.bar is None:
-            self.close()
-            self.label = label
-            self.bar = tqdm(total=total, desc=f"{label:<12}", file=self.stream, ascii=True,
-                            mininterval=self.interval, dynamic_ncols=True, leave=True)
-        self.bar.total = total
-        self.bar.update(done - self.bar.n)
-        if done >= total:
-            self.close()
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-        self.bar, self.label = None, None
+def _bar(args):
+    """The progress callback of a command: bars on stderr, or none with ``-q/--no-progress``."""
+    return NoProgress() if getattr(args, "no_progress", False) else ProgressBar()
 
 
 def _load(config_path: str | None, points: int | None = None, seed: int | None = None):
@@ -134,11 +111,14 @@ def _run(cfg, out: Path, args) -> int:
         # Dask's start-up and connection lines only with -vv
         logging.getLogger("distributed").setLevel(logging.WARNING)
     if cfg.run.realisations > 1:
+        if args.save_cir:
+            raise InputError("--save-cir", "a single run's only (run.realisations 1): run a "
+                             "realisation's config from its run.json with --save-cir")
         return _run_montecarlo(cfg, out, args, workers)
-    bar = ProgressBar()
+    bar = _bar(args)
     try:
         res = run(cfg, out, progress=bar, resume=args.resume, workers=workers,
-                  scheduler=args.scheduler, force=args.force)
+                  scheduler=args.scheduler, force=args.force, save_cir=args.save_cir)
     finally:
         bar.close()     # a stopped or failed run's message then starts a line of its own
     s = res.summary
@@ -163,8 +143,9 @@ def _run(cfg, out: Path, args) -> int:
 
     print("chain by stage (s, summed over workers): " + ", ".join(
         f"{k} {t[f'{k}_total']:.1f}" for k in STAGES if f"{k}_total" in t))
-    print(f"peak memory: {t['peak_rss_main_mib']:.0f} MiB main process, "
-          f"{t['peak_rss_worker_mib']:.0f} MiB largest worker")
+    r = res.metrics["resources"]
+    print(f"peak memory: {r['peak_rss_main_mib']:.0f} MiB main process, "
+          f"{r['peak_rss_worker_mib']:.0f} MiB largest worker")
     print(f"wrote {out}/ (metrics.json, <scenario>_results.csv, run.json, *.png, scene/)")
     return 0
 
@@ -178,7 +159,7 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
              else "one after the other")
     print(f"Monte Carlo: {n} realisations of {cfg.trajectory.num_points} points, {where}",
           flush=True)
-    bar = ProgressBar()
+    bar = _bar(args)
     try:
         res = run_montecarlo(cfg, out, progress=bar, workers=workers,
                              scheduler=args.scheduler, resume=args.resume, force=args.force)
@@ -212,10 +193,13 @@ def format_montecarlo(metrics: dict) -> str:
     for name, m in metrics["scenarios"].items():
         if not m.get("num_points"):
             continue
-        rates = " ".join(_pm(m, "correct_decision_rate", d) for d in DETECTORS)
+        uninf = m.get("uninformative_detectors") or ()
+        rates = " ".join(f"{'uninf.':>11s}" if d in uninf else _pm(m, "correct_decision_rate", d)
+                         for d in DETECTORS)
         outs = " ".join(_pm(m, "outcomes", k) for k in OUTCOMES)
         lines.append(f"{name:11s} {rates}  | {outs}")
-    lines.append("correct-decision rate and outcomes in %, as in a single run")
+    lines.append("correct-decision rate and outcomes in %, as in a single run; uninf.: flagged "
+                 "uninformative in at least one realisation")
     return "\n".join(lines)
 
 
@@ -352,7 +336,7 @@ def cmd_bench(args) -> int:
                          "need 'raytrace')")
     _out(args.out)
     t = time.perf_counter()
-    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=ProgressBar(),
+    res = run_bench(cfg, args.out, quick=args.quick, points=args.points, progress=_bar(args),
                     groups=tuple(args.only) if args.only else None)
     files = write_bench(res, args.out)
     print(markdown_table(res))
@@ -369,7 +353,7 @@ def cmd_compare(args) -> int:
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise InputError("--workers", f"got {workers}, expected an integer >= 1")
-    res = run_compare(cfg, args.out, progress=ProgressBar(), workers=workers,
+    res = run_compare(cfg, args.out, progress=_bar(args), workers=workers,
                       match_pathloss=args.match_pathloss)
     print(format_comparison(res))
     print(f"wrote {args.out}/ (comparison.md, comparison.json, comparison_*.csv, *.png, "
@@ -382,7 +366,7 @@ def cmd_validate(args) -> int:
 
     cfg = _load(args.config, args.points)
     _out(args.out)
-    res = run_validate(cfg, args.out, progress=ProgressBar())
+    res = run_validate(cfg, args.out, progress=_bar(args))
     print(format_validation(res))
     st = res.summary["raytrace_stats"]
     print(f"ray tracing {res.timing_s['ray_tracing']:.1f} s ({st['cache_hits']} of "
@@ -446,7 +430,7 @@ def cmd_config(args) -> int:
     from .config import config_schema, config_to_dict
 
     if args.action == "schema":
-        print(json.dumps(config_schema(), indent=2))
+        print(json_text(config_schema()))
     elif args.action == "check":
         import tempfile
 
@@ -458,7 +442,35 @@ def cmd_config(args) -> int:
             print(f"ok: {geo.num_points} points, {len(geo.bs_pos)} BSs, scene "
                   f"{cfg.scene.source}, trajectory {cfg.trajectory.source}")
     else:
-        print(json.dumps(config_to_dict(_load(args.config)), indent=2))
+        print(json_text(config_to_dict(_load(args.config))))
+    return 0
+
+
+def cmd_export(args) -> int:
+    from .report.tables import export_mat, export_parquet, load_run
+
+    tables = load_run(args.dir)
+    out = Path(args.out)
+    if args.format == "parquet":
+        if out.exists() and not out.is_dir():
+            raise InputError("--out", f"{out} is not a folder (Parquet: one file per table)")
+        written = export_parquet(tables, out)
+    else:
+        if out.is_dir():
+            raise InputError("--out", f"{out} is a folder (MATLAB: one .mat file)")
+        if out.suffix != ".mat":
+            raise InputError("--out", f"{out}: the MATLAB file's name ends with .mat")
+        written = [export_mat(tables, out)]
+    rows = ", ".join(f"{k} {len(v)}" for k, v in tables.tables().items())
+    print(f"wrote {', '.join(str(w) for w in written)} (rows: {rows})")
+    return 0
+
+
+def cmd_plot(args) -> int:
+    from .report.replot import replot
+
+    written = replot(args.dir, args.out, args.plot_format, args.dpi)
+    print(f"wrote {len(written)} figures into {args.out}/ ({args.plot_format}, {args.dpi} dpi)")
     return 0
 
 
@@ -492,9 +504,23 @@ def _browser_flags(p: argparse.ArgumentParser, port_help: str,
     p.add_argument("--no-browser", action="store_true", help=browser_help)
 
 
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+def _quiet_flag(p: argparse.ArgumentParser, default=argparse.SUPPRESS) -> None:
+    """``-q/--no-progress``, before or after the command's name."""
+    p.add_argument("-q", "--no-progress", dest="no_progress", action="store_true",
+                   default=default, help="no progress bars (the results are printed as usual)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="veriloc-rt", description=__doc__.splitlines()[0])
     p.add_argument("-v", "--verbose", action="count", default=0, help="more logging (-vv: debug)")
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    _quiet_flag(p, False)
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario (no CONFIG: the built-in default)")
     r.add_argument("config", nargs="?", help="JSON config file")
@@ -512,10 +538,14 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true",
                    help="write into a non-empty --out: replace a finished run there (or "
                    "the points of an unfinished one), or write beside other files")
+    r.add_argument("--save-cir", action="store_true", help="also write the run's channel "
+                   "impulse responses into --out (cir_<links>.npz; CIR.to_sionna gives Sionna "
+                   "RT's (a, tau) layout)")
     r.add_argument("--live", action="store_true", help="serve the live view of --out on "
                    "127.0.0.1 while the run goes (in its own process; it stays until Ctrl-C)")
     _browser_flags(r, "--live: port (default 8765, or a free one)",
                    "--live: do not open a browser")
+    _quiet_flag(r)
     r.set_defaults(func=cmd_run)
     w = sub.add_parser("view", help="serve the live view of a running or finished run folder "
                        "on 127.0.0.1")
@@ -560,6 +590,7 @@ def build_parser() -> argparse.ArgumentParser:
     cp.add_argument("--match-pathloss", action="store_true", help="shift the twin's path loss "
                     "so that its median equals the traced one, LoS and NLoS links apart "
                     "(separates mean loss from multipath structure)")
+    _quiet_flag(cp)
     cp.set_defaults(func=cmd_compare)
     b = sub.add_parser("bench", help="sweep the fidelity settings: time vs accuracy table and "
                        "chart with the Pareto front")
@@ -571,6 +602,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "--quick, else 40)")
     b.add_argument("--only", nargs="+", choices=("raytrace", "waveform"),
                    help="sweep only these groups of knobs")
+    _quiet_flag(b)
     b.set_defaults(func=cmd_bench)
     v = sub.add_parser("validate", help="the scene's traced path loss against distance beside "
                        "ITU-R P.1411, COST-231 Walfisch-Ikegami, TR 38.901 UMa/UMi NLOS and free "
@@ -579,6 +611,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(its propagation.model is ignored: the links are ray traced)")
     v.add_argument("--out", required=True, help="output folder")
     v.add_argument("--points", type=int, help="number of trajectory points")
+    _quiet_flag(v)
     v.set_defaults(func=cmd_validate)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
     c.add_argument("action", choices=("schema", "show", "check"),
@@ -588,6 +621,24 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--points", type=int, help="check: number of trajectory points")
     c.add_argument("--seed", type=int, help="check: override the config's seed")
     c.set_defaults(func=cmd_config)
+    x = sub.add_parser("export", help="a run folder's tables (points, per-TRP links, metrics, "
+                       "ROC) as Parquet files or one MATLAB .mat file")
+    x.add_argument("dir", help="the run's --out folder (a Monte Carlo's too)")
+    x.add_argument("--format", choices=("parquet", "mat"), required=True,
+                   help="parquet: one <table>.parquet per table in the folder --out; mat: one "
+                   "MATLAB v5 file --out with a struct per table")
+    x.add_argument("--out", required=True, help="output folder (parquet) or .mat file (mat); "
+                   "never inside the run's own files: pick a new name")
+    x.set_defaults(func=cmd_export)
+    pl = sub.add_parser("plot", help="a finished run's summary figures again (outcomes, "
+                        "detection rates, ROC, time series) in another format and resolution")
+    pl.add_argument("dir", help="the run's --out folder")
+    pl.add_argument("--out", required=True, help="output folder (not the run's own)")
+    pl.add_argument("--plot-format", choices=("png", "pdf", "svg"), default="pdf",
+                    help="file format (default pdf)")
+    pl.add_argument("--dpi", type=int, default=300, help="resolution of PNG figures, dots per "
+                    "inch (default 300; the run writes 110)")
+    pl.set_defaults(func=cmd_plot)
     return p
 
 

@@ -9,6 +9,8 @@ never a truncated target.
 from __future__ import annotations
 
 import errno
+import json
+import math
 import os
 import secrets
 import shutil
@@ -17,7 +19,7 @@ from pathlib import Path
 from typing import Iterator
 
 __all__ = ["atomic_files", "atomic_output", "atomic_write_bytes", "atomic_write_text", "naming",
-           "exchange_folders", "TMP_MARK", "DISK_FULL"]
+           "exchange_folders", "TMP_MARK", "DISK_FULL", "strict_json", "json_text", "NONFINITE"]
 
 #: part of every temporary file's name (so that a folder scan can skip them)
 TMP_MARK = ".tmp-"
@@ -133,3 +135,36 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
 def atomic_write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_output`)."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+#: how :func:`json_text` writes a float that is not finite (JSON has no such number)
+NONFINITE = {"inf": "inf", "-inf": "-inf", "nan": None}
+
+
+def strict_json(obj):
+    """``obj`` with every non-finite float replaced as :data:`NONFINITE` says: ``+inf`` and
+    ``-inf`` become the strings ``"inf"`` and ``"-inf"`` (``float()`` reads them back, so does
+    MATLAB's ``str2double``), NaN becomes ``null`` (no value). NumPy scalars and arrays become
+    plain numbers and lists; tuples become lists; a :class:`~pathlib.Path` becomes its text."""
+    if isinstance(obj, dict):
+        return {str(k): strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, bool) or obj is None or isinstance(obj, str):
+        return obj
+    if isinstance(obj, Path):
+        return str(obj)
+    if hasattr(obj, "tolist") and not isinstance(obj, (int, float)):   # NumPy scalar or array
+        return strict_json(obj.tolist())
+    if isinstance(obj, float):
+        if math.isnan(obj):
+            return NONFINITE["nan"]
+        if math.isinf(obj):
+            return NONFINITE["inf" if obj > 0 else "-inf"]
+    return obj
+
+
+def json_text(obj, indent: int | None = 2, **kwargs) -> str:
+    """``obj`` as strict JSON text (RFC 8259: no ``NaN``/``Infinity`` tokens, which
+    ``JSON.parse`` and ``jq`` reject): non-finite floats as :func:`strict_json` writes them."""
+    return json.dumps(strict_json(obj), indent=indent, allow_nan=False, **kwargs)

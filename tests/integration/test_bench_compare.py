@@ -13,6 +13,7 @@ import csv
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,11 +22,14 @@ from scipy.stats import binomtest
 
 from veriloc_rt.studies.bench import ACCURACY_ALPHA, COST_RTOL, PARETO_METRIC
 from veriloc_rt.cli import main
+from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.fileio import TMP_MARK
+
+from .strict_json import assert_strict_json
 
 CONFIG = str(Path(__file__).resolve().parents[2] / "configs" / "ci-tiny.json")
 
-pytestmark = pytest.mark.raytrace
+pytestmark = [pytest.mark.raytrace, pytest.mark.heavy]
 #: the files each command placed by a rename (os.replace), by command
 RENAMED: dict[str, set] = {}
 
@@ -66,6 +70,7 @@ def _rows(path):
 
 
 def test_bench_files_and_numbers(bench_out):
+    assert_strict_json(bench_out / "bench.json")
     for name in ("bench.csv", "bench.json", "bench.md", "bench_pareto.png"):
         assert (bench_out / name).stat().st_size > 0, name
     rows = _rows(bench_out / "bench.csv")
@@ -154,6 +159,24 @@ def test_compare_writes_each_file_atomically(compare_out):
 
 
 def test_compare_files_and_numbers(compare_out):
+    assert_strict_json(compare_out / "comparison.json")
+    md = (compare_out / "comparison.md").read_text()
+    # every table row has as many cells as its header (a bare "|" in a cell would split it)
+    assert "| \\|RSTD error\\|, m |" in md
+    table = []
+    for line in md.splitlines() + [""]:
+        if line.startswith("|"):
+            table.append(len(re.findall(r"(?<!\\)\|", line)))
+        elif table:
+            assert len(set(table)) == 1, table
+            table = []
+    data_ = json.loads((compare_out / "comparison.json").read_text())
+    for model, scen in data_["detectors"].items():
+        for s, m in scen.items():
+            for d in set(m.get("uninformative_detectors") or ()) & set(DETECTORS):
+                row = next(ln for ln in md.splitlines() if ln.startswith(f"| {s} | {model} |"))
+                cells = [c.strip() for c in row.strip("|").split("|")]
+                assert cells[2 + DETECTORS.index(d)] == "uninf.", row
     for name in ("comparison.md", "comparison.json", "comparison_points.csv",
                  "comparison_channel.csv", "comparison_cdf.png", "comparison_detectors.png",
                  "raytrace/metrics.json", "uma/metrics.json"):

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from .strict_json import assert_strict_json_text
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -51,11 +53,13 @@ def test_scene_command_writes_xml_ply_png(tmp_path):
     assert (tmp_path / "scene_top_view.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_config_schema_and_show():
+def test_config_schema_and_show(tmp_path):
     r = cli("config", "schema")
     assert r.returncode == 0 and json.loads(r.stdout)["additionalProperties"] is False
+    assert_strict_json_text(r.stdout, tmp_path)
     r = cli("config", "show", ROOT / "configs" / "ci-tiny.json")
     assert r.returncode == 0 and json.loads(r.stdout)["trajectory"]["num_points"] == 40
+    assert_strict_json_text(r.stdout, tmp_path)
 
 
 def test_keys_generate_refuse_overwrite_and_bad_key_file(tmp_path):

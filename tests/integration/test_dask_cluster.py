@@ -22,6 +22,9 @@ from veriloc_rt.sim.process_cluster import process_cluster
 
 from .test_cli import ROOT
 
+#: real Dask clusters of separate processes, ~1.5 min: CI's second step (-m heavy)
+pytestmark = pytest.mark.heavy
+
 #: small UMa run (path loss only, no tracing), as in test_montecarlo.py: 8 points, attack
 #: window points 2..5; 2 realisations for the Monte Carlo
 SMALL = {"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
@@ -32,10 +35,11 @@ REALISATIONS = 2
 RUN_TIMEOUT_S = 300.0
 
 #: the fields that measure time or say where a run ran, per file name: removed before the
-#: comparison. ``timing_s`` of metrics.json and run.json: stage times, wall time, peak memory,
-#: ``workers``, ``scheduler``; ``raytrace_stats.wall_s`` of propagation_summary.json: the wall
-#: time of the propagation draw.
-TIMING_FIELDS = {"metrics.json": [("timing_s",)], "run.json": [("timing_s",)],
+#: comparison. ``timing_s`` of metrics.json and run.json: stage times and wall time;
+#: ``resources``: ``workers``, ``scheduler``, peak memory; ``raytrace_stats.wall_s`` of
+#: propagation_summary.json: the wall time of the propagation draw.
+TIMING_FIELDS = {"metrics.json": [("timing_s",), ("resources",)],
+                 "run.json": [("timing_s",), ("resources",)],
                  "propagation_summary.json": [("raytrace_stats", "wall_s")]}
 #: the placeholder of a run folder's absolute path, which run.json records (``scene_xml``)
 OUT = "<out>"
@@ -138,11 +142,11 @@ def test_real_cluster_gives_the_serial_files(serial, cluster):
     # JSON/CSV files (roc.csv among them), chains.bin, 8 plots (roc.png) and 3 scene files
     # (XML, 2 PLY)
     assert files == 6 + REALISATIONS * 19
-    timing = json.loads((where / "mc_dask" / "metrics.json").read_text())["timing_s"]
+    timing = json.loads((where / "mc_dask" / "metrics.json").read_text())["resources"]
     assert timing["scheduler"] == address and timing["workers"] == 2
 
     assert assert_same_run_files(where / "one_serial", where / "one_dask") == 19
-    timing = json.loads((where / "one_dask" / "metrics.json").read_text())["timing_s"]
+    timing = json.loads((where / "one_dask" / "metrics.json").read_text())["resources"]
     assert timing["scheduler"] == address and timing["workers"] == 2
     # the workers wrote nothing where they run: every file went to the client's --out
     assert not any(worker_cwd.iterdir())

@@ -20,6 +20,8 @@ from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.detectors.statistics import STATISTICS, accepts, configured_thresholds
 from veriloc_rt.report.detection import FUSED
 
+from .strict_json import assert_folder_strict
+
 #: percent in metrics.json against fractions in the ROC: one rounding of x / n * 100
 PCT_TOL = 1e-12
 
@@ -71,6 +73,7 @@ def test_tiny_uma_run_statistics_roc_fusion_and_flag(tmp_path, capsys):
     cfg = config_from_dict(data)
     out = tmp_path / "r"
     check_statistics_and_roc(out, cfg)
+    assert len(assert_folder_strict(out)) >= 3  # metrics, run, propagation summary
     m = json.loads((out / "metrics.json").read_text())
     roc = m["roc"]
     # the 1 mm handshake accepts no benign fix: flagged, not a detection success

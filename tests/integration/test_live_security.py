@@ -401,6 +401,7 @@ def test_a_slow_client_neither_blocks_others_nor_keeps_its_thread(editor):
     slow.close()
 
 
+@pytest.mark.heavy   # 20-45 s of timeouts: CI's second step
 def test_a_trickling_client_is_cut_off_at_the_request_deadline(editor):
     s, _cfg, _out = editor
     slow = socket.create_connection(("127.0.0.1", s.port), timeout=PROMPT_S)
@@ -584,6 +585,7 @@ def test_edit_without_config_writes_only_its_new_default_file(tmp_path):
         server.shutdown()
 
 
+@pytest.mark.heavy   # 20-45 s of timeouts: CI's second step
 def test_ctrl_c_stops_the_server_while_connections_arrive(tmp_path):
     """Ctrl-C lands at any point of the serving loop, also while it starts a handler thread
     (a KeyboardInterrupt there was once turned into a logged error and the server went on)."""

@@ -55,6 +55,7 @@ def serial_mc(tmp_path_factory):
     return f, tmp / "serial"
 
 
+@pytest.mark.heavy
 def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
     """Acceptance (issue #6): realisations as tasks on a 2-worker LocalCluster == serial."""
     f, serial = serial_mc
@@ -68,7 +69,7 @@ def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
     agg = json.loads((serial / "metrics.json").read_text())
     agg_dask = json.loads((dask / "metrics.json").read_text())
     assert agg_dask["scenarios"] == agg["scenarios"]
-    assert agg_dask["timing_s"]["workers"] == 2 and agg["timing_s"]["workers"] == 1
+    assert agg_dask["resources"]["workers"] == 2 and agg["resources"]["workers"] == 1
 
     # the aggregate is the mean and t-interval of the realisations' own metrics.json
     per = [json.loads((serial / r / "metrics.json").read_text())
@@ -98,6 +99,7 @@ def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
     assert r1["seed"] == info["realisations"][1]["seed"] and r1["run"]["realisations"] == 1
 
 
+@pytest.mark.heavy
 def test_single_run_chunks_on_a_scheduler_give_the_serial_result(serial_mc, tmp_path):
     """``--scheduler`` with one realisation: trajectory chunks as tasks, detectors in order;
     the reference is the serial Monte Carlo's realisation 0 (the plain run)."""
@@ -109,7 +111,8 @@ def test_single_run_chunks_on_a_scheduler_give_the_serial_result(serial_mc, tmp_
                 [f"{s}_results.csv" for s in cfg.run.scenarios])
     ref = json.loads((serial / "realisation_000" / "metrics.json").read_text())
     assert res.metrics["scenarios"] == ref["scenarios"]
-    assert res.timing_s["workers"] == 2 and res.timing_s["scheduler"].startswith("tcp://")
+    r = res.metrics["resources"]
+    assert r["workers"] == 2 and r["scheduler"].startswith("tcp://")
 
 
 def test_realisation_zero_is_the_plain_run():

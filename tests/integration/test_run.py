@@ -9,6 +9,7 @@ import pytest
 from veriloc_rt.cli import main
 from veriloc_rt.phy.chain import STAGES
 
+from .strict_json import assert_folder_strict
 from .test_cli import ROOT
 
 
@@ -40,7 +41,11 @@ def test_run_uma(tmp_path):
     stages = [t[f"{k}_total"] for k in STAGES]
     assert all(v > 0 for v in stages)
     assert sum(stages) <= t["chain_total"]
-    assert t["peak_rss_main_mib"] > 50  # numpy + scipy alone take more
+    assert all(isinstance(v, float) for v in t.values())  # seconds only
+    r = json.loads((tmp_path / "r" / "metrics.json").read_text())["resources"]
+    assert r["peak_rss_main_mib"] > 50  # numpy + scipy alone take more
+    names = {f.name for f in assert_folder_strict(tmp_path / "r")}
+    assert {"metrics.json", "run.json", "propagation_summary.json"} <= names
 
 
 @pytest.mark.raytrace

@@ -19,6 +19,8 @@ import time
 import numpy as np
 import pytest
 
+import veriloc_rt
+
 from veriloc_rt.config import config_from_dict
 from veriloc_rt.sim import engine
 from veriloc_rt.sim.engine import run
@@ -343,14 +345,22 @@ def test_ctrl_c_during_ray_tracing_then_resume_reuses_the_traced_calls(tmp_path)
     assert again["raytrace_stats"]["cache_hits"] == stats["cache_hits"] + stats["calls"]
 
 
-def test_relative_out_is_recorded_as_an_absolute_scene_path(tmp_path, monkeypatch):
-    """Regression (a real Dask cluster, issue #22): with a relative ``out_dir``, run.json
-    recorded ``scene_xml`` relative to the caller's working directory (and the geometry a
-    cluster's workers receive held that relative path); it is absolute now, as a Monte Carlo's."""
+def test_relative_out_gives_an_absolute_scene_path_and_run_json_a_relative_one(tmp_path,
+                                                                                monkeypatch):
+    """Regression (a real Dask cluster, issue #22): with a relative ``out_dir``, the geometry a
+    cluster's workers receive held a path relative to the caller's working directory; it is
+    absolute now. run.json records it relative to the run folder (issue #40: the folder can be
+    moved), with the package's git revision when the package is a git checkout."""
     monkeypatch.chdir(tmp_path)
     cfg = config_from_dict({**UMA, "trajectory": {"num_points": 2},
                             "run": {"scenarios": ["none"]}})
     res = run(cfg, "rel")
     want = tmp_path.resolve() / "rel" / "scene" / "scene.xml"
-    assert json.loads((tmp_path / "rel" / "run.json").read_text())["scene_xml"] == str(want)
+    info = json.loads((tmp_path / "rel" / "run.json").read_text())
+    assert info["scene_xml"] == "scene/scene.xml"
+    assert info["versions"]["veriloc-rt"] == veriloc_rt.__version__
+    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
+                          text=True).stdout.strip()
+    assert info["git_revision"].removesuffix("-dirty") == head
+    assert info["resources"]["workers"] == 1
     assert res.geometry.scene_xml == want and res.out_dir == tmp_path.resolve() / "rel"

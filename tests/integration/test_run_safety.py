@@ -167,6 +167,7 @@ def test_every_run_file_that_is_not_regular_is_refused_before_it_is_read(tmp_pat
 
 # -- runs that stop cleanly ----------------------------------------------------------------
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_sigterm_stops_a_run_like_ctrl_c_and_resume_gives_the_same_bytes(tmp_path, made):
     """Issue 37: SIGTERM ended a run silently (rc 143), left the owner file and 'running'.
     Now: the Ctrl-C message, exit 143, status 'stopped', no owner file, no traceback from the
@@ -197,6 +198,7 @@ def test_sigterm_stops_a_run_like_ctrl_c_and_resume_gives_the_same_bytes(tmp_pat
     same_csvs(out, full, LONGER)
 
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_a_killed_runs_owner_file_is_stale_stopped_and_blocks_nothing(tmp_path, made):
     """Issue 37: after a kill the live view showed 'running' for ever. A SIGKILLed run leaves
     'running' and its owner file naming a process that is gone: the live view says
@@ -259,6 +261,7 @@ def test_the_locked_message_names_what_the_owner_file_knows(tmp_path, owner, say
 
 # -- finished results are never replaced without --force -----------------------------------
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_a_same_config_rerun_into_a_complete_folder_is_refused(tmp_path, made):
     """Issue 37: a same-config rerun replaced a finished run's results (killed at 5 rows, it
     left 5 rows of a complete run). Refused now, the folder unchanged; --force replaces."""
@@ -276,6 +279,7 @@ def test_a_same_config_rerun_into_a_complete_folder_is_refused(tmp_path, made):
     same_csvs(out, full, TINY)
 
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_an_unfinished_run_with_points_needs_resume_or_force(tmp_path, made):
     """The choice for an unfinished folder: its finished points are kept too (--resume
     continues them, --force starts over); one that finished no point is started over."""
@@ -320,6 +324,7 @@ class FullDisk:
         return getattr(self.fh, name)
 
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_a_full_disk_names_the_file_and_keeps_every_finished_point(tmp_path, made, monkeypatch,
                                                                      capsys):
     """Issue 37: 'error: OSError: [Errno 28] ...' named no file. The results CSV's appends
@@ -416,6 +421,7 @@ def test_a_scheduler_that_refuses_the_connection_is_one_line(tmp_path, made):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_a_scheduler_without_workers_is_one_line_and_the_run_resumable(tmp_path, made):
     """Issue 37: 'TimeoutError: No valid workers found', exit 1, no hint."""
     cfg, _ = made["tiny"]
@@ -447,6 +453,7 @@ def test_a_scheduler_without_workers_is_one_line_and_the_run_resumable(tmp_path,
     assert json.loads((out / "run.json").read_text())["status"] == "stopped"
 
 
+@pytest.mark.heavy   # 20-90 s of runs: CI's second step
 def test_sigterm_stops_a_monte_carlo_on_a_local_cluster_quietly_and_resumably(tmp_path):
     """The Dask workers of a local cluster: SIGTERM to the command prints its one message, no
     traceback and no warning of the cluster's shutdown; --resume then gives the uninterrupted

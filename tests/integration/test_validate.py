@@ -17,6 +17,8 @@ from veriloc_rt.cli import main
 from veriloc_rt.fileio import TMP_MARK
 from veriloc_rt.studies.validate import MODELS
 
+from .strict_json import assert_strict_json
+
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = str(ROOT / "configs" / "ci-tiny.json")
 POINTS = 6
@@ -57,6 +59,7 @@ def test_validate_writes_each_file_atomically(validate_out):
 
 @pytest.mark.raytrace
 def test_validate_files_bins_and_free_space_bound(validate_out):
+    assert_strict_json(validate_out / "validation.json")
     for name in ("validation.json", "validation.md", "validation_links.csv",
                  "validation_pathloss.png"):
         assert (validate_out / name).stat().st_size > 0, name

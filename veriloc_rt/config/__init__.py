@@ -23,7 +23,8 @@ from .attacks import FBS_MODES, FBSConfig, JammingConfig, MeaconingConfig, Threa
 from .channel import ChannelConfig, ReceiverConfig
 from .detectors import (ABSAConfig, DetectorsConfig, FusionConfig, HandshakeConfig,
                         TagDetectorConfig, TrackingConfig)
-from .fields import check_value, from_dict, json_schema, param, section, to_dict
+from .fields import (check_value, from_dict, json_schema, param, patch_data, section, to_dict,
+                     validate_on_construction)
 from .nr import NRConfig
 from .propagation import (POLARIZATIONS, ArrayConfig, MaterialsConfig, PolarizationConfig,
                           PropagationConfig, RayTracingConfig)
@@ -144,8 +145,27 @@ class Config:
                             "ends there")
 
     def replace(self, **changes: Any) -> "Config":
-        """Copy with top-level fields changed (``seed=...``)."""
-        return dataclasses.replace(self, **changes)
+        """Copy with top-level fields changed (``seed=...``; a section as a section object or
+        as a dict of the fields to change, ``scene={"street_width_m": 8}``), validated.
+
+        :raises InputError: naming the dotted field path, as a config file's error
+        """
+        whole = {k: v for k, v in changes.items() if not isinstance(v, dict)}
+        parts = {f"{k}.{f}": w for k, v in changes.items() if isinstance(v, dict)
+                 for f, w in v.items()}
+        cfg = dataclasses.replace(self, **whole) if whole else self
+        return cfg.updated(parts) if parts else cfg
+
+    def updated(self, changes: dict) -> "Config":
+        """Copy with the fields at the dotted paths of ``changes`` set
+        (``cfg.updated({"scene.street_width_m": 8})``), validated as a config file is.
+
+        :raises InputError: naming the dotted field path (unknown, wrong type, out of range)
+        """
+        return config_from_dict(patch_data(config_to_dict(self), changes))
+
+
+validate_on_construction(Config)
 
 
 def config_from_dict(data: dict) -> Config:

@@ -16,6 +16,9 @@ from typing import Any
 
 from ..errors import InputError, bad_value
 
+__all__ = ["param", "section", "from_dict", "to_dict", "json_schema", "check_value",
+           "patch_data", "validate_on_construction", "INT_LIMIT"]
+
 #: every integer field fits in a signed 64-bit integer (NumPy and the file formats use int64)
 INT_LIMIT = 2**63
 
@@ -137,11 +140,116 @@ def from_dict(cls: type, data: Any, path: str = "") -> Any:
     try:
         obj = cls(**kwargs)
     except InputError as exc:  # a section that validates itself on construction
-        raise InputError(f"{path}.{exc.field}" if path else exc.field, exc.problem) from None
+        raise InputError(_under(path, exc.field), exc.problem) from None
     check = getattr(obj, "validate", None)
     if check is not None:
         check(path)
     return obj
+
+
+def _under(path: str, field: str) -> str:
+    """``field`` (relative to the section at ``path``, or already a full path) in full."""
+    if not path or field == path or field.startswith(path + ".") or field.startswith(path + "["):
+        return field
+    return f"{path}.{field}"
+
+
+#: section class -> its dotted path in the root config, for the classes used at one place only
+#: (:func:`validate_on_construction`); others name their fields relative to the section
+_PATHS: dict[type, str] = {}
+_HINTS: dict[type, dict] = {}
+
+
+def _checked_args(cls: type, given: dict) -> dict:
+    """The constructor arguments ``given`` of config section ``cls`` checked and coerced as
+    :func:`from_dict` checks a file's values (a nested section may be a dict). Errors name the
+    field's dotted path (:data:`_PATHS`)."""
+    path = _PATHS.get(cls, "")
+    hints = _HINTS.get(cls)
+    if hints is None:
+        hints = _HINTS[cls] = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    out = {}
+    for name, value in given.items():
+        if name not in fields:   # the constructor's own TypeError says so
+            out[name] = value
+            continue
+        tp, fpath = hints[name], f"{path}.{name}" if path else name
+        if dataclasses.is_dataclass(tp):
+            out[name] = value if isinstance(value, tp) else from_dict(tp, value, fpath)
+        else:
+            out[name] = _coerce(tp, value, fpath)
+            _check_constraints(fields[name], out[name], fpath)
+    return out
+
+
+def validate_on_construction(root: type) -> None:
+    """Make every config section class reachable from ``root`` check its arguments whenever an
+    instance is made (constructor, ``dataclasses.replace``, ``Config.replace``): the same
+    one-line :class:`~veriloc_rt.errors.InputError` naming the dotted field path as a config
+    file gets. Idempotent."""
+    seen: dict[type, list[str]] = {}
+
+    def walk(cls: type, path: str) -> None:
+        seen.setdefault(cls, []).append(path)
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            if dataclasses.is_dataclass(hints[f.name]):
+                walk(hints[f.name], f"{path}.{f.name}" if path else f.name)
+
+    walk(root, "")
+    for cls, paths in seen.items():
+        if len(paths) == 1:
+            _PATHS[cls] = paths[0]
+        if getattr(cls.__init__, "_validates", False):
+            continue
+        init = cls.__init__
+
+        def __init__(self, *args, __init=init, **kwargs):
+            cls = type(self)
+            names = [f.name for f in dataclasses.fields(cls) if f.init]
+            given = dict(zip(names, args)) | kwargs
+            path = _PATHS.get(cls, "")
+            try:   # a section's own __post_init__ checks name fields relative to it
+                __init(self, **_checked_args(cls, given))
+            except InputError as exc:
+                raise InputError(_under(path, exc.field), exc.problem) from None
+            check = getattr(self, "validate", None)
+            if check is not None:
+                check(path)
+
+        __init__._validates = True
+        __init__.__doc__ = init.__doc__
+        __init__.__wrapped__ = init
+        cls.__init__ = __init__
+
+
+def patch_data(data: dict, changes: dict, *, must_exist: bool = False) -> dict:
+    """A deep copy of the config data ``data`` with each dotted path of ``changes`` set
+    (``{"scene.street_width_m": 8}``); missing sections are created (the config's reader then
+    rejects an unknown key, naming it). The one patch helper of the package and its scripts.
+
+    :param must_exist: also reject a path whose field is not in ``data``
+    :raises InputError: ``<path>: ...`` for a path through a value that is not a section
+    """
+    import copy
+
+    out = copy.deepcopy(data)
+    for path, value in changes.items():
+        if not isinstance(path, str) or not path or any(not k for k in path.split(".")):
+            raise InputError(str(path), "not a dotted field path (e.g. scene.street_width_m)")
+        *sections, leaf = path.split(".")
+        node = out
+        for i, k in enumerate(sections):
+            if must_exist and k not in node:
+                raise InputError(path, "no such config field")
+            node = node.setdefault(k, {})
+            if not isinstance(node, dict):
+                raise InputError(path, f"{'.'.join(sections[:i + 1])} is a value, not a section")
+        if must_exist and leaf not in node:
+            raise InputError(path, "no such config field")
+        node[leaf] = copy.deepcopy(value)
+    return out
 
 
 def check_value(cls: type, name: str, value: Any, where: str) -> Any:

@@ -145,6 +145,38 @@ class CIR:
         return CIR(**{n: getattr(self, n)[points] for n in names},
                    carrier_frequency=self.carrier_frequency, meta=dict(self.meta))
 
+    def to_sionna(self, point: int, num_time_steps: int = 1, sampling_frequency: float = 1.0,
+                  normalize_delays: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Point ``point``'s links as Sionna RT's ``Paths.cir(out_type="numpy")`` returns them
+        for a synthetic array (Sionna RT 2.x, ``sionna.rt.Paths.cir``): ``(a, tau)`` with
+
+        * ``a``: [num_rx=1, num_rx_ant=num_ant, num_tx, num_tx_ant=1, num_paths,
+          num_time_steps] complex, the baseband coefficient
+          ``a_i exp(-j 2 pi fc tau_i) exp(j 2 pi f_D,i t)`` at ``t = s / sampling_frequency``,
+          s = 0 .. num_time_steps - 1; 0 on an invalid path;
+        * ``tau``: [num_rx=1, num_tx, num_paths] float, s; -1 on an invalid path.
+
+        As Sionna does, ``normalize_delays`` subtracts each link's first path delay from its
+        paths before the carrier phase is applied (Sionna's default, True). The transmitters
+        are this CIR's link slots (``tx_index[point]``), the receive antennas the UE's
+        elements; a link slot without a transmitter has only invalid paths.
+        """
+        if not 0 <= point < self.num_points:
+            raise IndexError(f"point {point} of a CIR of {self.num_points} points")
+        valid = self.valid[point]                                   # [T, N]
+        tau = np.where(valid, self.delays[point], np.inf)
+        if normalize_delays:
+            first = tau.min(axis=-1, keepdims=True)
+            tau = tau - np.where(np.isfinite(first), first, 0.0)
+        tau = np.where(valid & np.isfinite(tau), tau, -1.0)
+        phase = np.exp(-2j * np.pi * self.carrier_frequency * np.where(tau == -1.0, 0.0, tau))
+        a = np.where(valid[:, None, :], self.gains[point] * phase[:, None, :], 0.0)  # [T, A, N]
+        t = np.arange(num_time_steps) / float(sampling_frequency)
+        doppler = np.exp(2j * np.pi * self.doppler[point][..., None] * t)       # [T, N, S]
+        a = a[..., None] * doppler[:, None, :, :]                                # [T, A, N, S]
+        a = np.transpose(a, (1, 0, 2, 3))[None, :, :, None, :, :]                # [1, A, T, 1, N, S]
+        return a, tau[None]
+
     def to_arrays(self) -> dict[str, np.ndarray]:
         """Plain arrays (for ``np.savez``)."""
         names = ("delays", "gains", "aoa_az", "aoa_zen", "aod_az", "aod_zen", "doppler",

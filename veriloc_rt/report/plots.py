@@ -12,6 +12,7 @@ import csv
 import logging
 import threading
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +32,8 @@ INT_COLUMNS = ("index", "bs_heard", "bs_used")
 _SCENARIO_LABELS = {"none": "No Attack", "fbs": "FBS", "meaconing": "Meaconing",
                     "jamming": "Jamming"}
 _DETECTOR_STYLE = {  # display label, colour (the paper's pgfplots colours)
-    "HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
-    "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
+    "HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DigSig", (0.7, 0.0, 0.0)),
+    "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("Handshake", (1.0, 0.6, 0.2)),
     "Tracking": ("Tracking", (0.3, 0.3, 0.3))}
 _OUTCOME_COLOURS = {"success": (0.0, 0.6, 0.0), "large_error": (1.0, 0.3, 0.3),
                     "service_failure": (0.75, 0.75, 0.75)}
@@ -48,6 +49,22 @@ _MAP_MARGINS_IN = (0.8, 0.15, 0.6, 0.15)
 #: savefig options by file suffix: PNG at zlib level 1 (the same pixels; encoding takes
 #: 15-30 ms instead of 26-58 ms per run figure, files 10-40 % larger)
 _SAVE_KW = {".png": {"pil_kwargs": {"compress_level": 1}}}
+#: resolution of raster figures (PNG), dots per inch; :func:`figure_dpi` changes it
+DEFAULT_DPI = 110
+_DPI: ContextVar[int] = ContextVar("figure_dpi", default=DEFAULT_DPI)
+
+
+@contextmanager
+def figure_dpi(dpi: int):
+    """Save the figures of the block at ``dpi`` (raster formats; PDF and SVG are vector, their
+    fonts and lines do not depend on it)."""
+    token = _DPI.set(int(dpi))
+    try:
+        yield
+    finally:
+        _DPI.reset(token)
+
+
 #: height the figure's title (``suptitle``, 'large' font, at 98 % of the figure's height) takes
 #: above the margins, inches
 TITLE_IN = 0.3
@@ -96,7 +113,7 @@ def figure(path: str | Path, title: str | None, nrows: int = 1, figsize=(8.0, 5.
         if title:
             fig.suptitle(title)
         with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
-            fig.savefig(tmp, **_SAVE_KW.get(Path(path).suffix.lower(), {}))
+            fig.savefig(tmp, dpi=_DPI.get(), **_SAVE_KW.get(Path(path).suffix.lower(), {}))
         log.info("wrote %s", path)
     finally:
         fig.clear()
@@ -134,7 +151,8 @@ def _value(d: dict, key: str) -> float:
 def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> Path:
     """Grouped bars of the mean correct-decision rate per scenario and detector, with the
     ``ci95`` intervals as error bars, drawn clipped to 0..100 % (a rate cannot leave it; the
-    t-interval of few realisations can); none below two realisations."""
+    t-interval of few realisations can); none below two realisations. A detector a scenario
+    flags uninformative (in any realisation) gets no bar and an "uninf." label."""
     sc = metrics["scenarios"]
     names = [s for s in sc if sc[s].get("correct_decision_rate")]
     width = 0.16
@@ -143,16 +161,19 @@ def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> 
         x = np.arange(len(names), dtype=float)
         for k, det in enumerate(DETECTORS):
             xs = x + (k - (len(DETECTORS) - 1) / 2.0) * width
-            mean = np.array([_num(sc[s]["correct_decision_rate"].get(det)) for s in names])
+            mean = np.array([np.nan if det in _uninformative(metrics, s)   # no attack bar
+                             else _num(sc[s]["correct_decision_rate"].get(det)) for s in names])
             half = np.nan_to_num([_num(sc[s]["ci95"].get("correct_decision_rate", {}).get(det))
                                   for s in names])
+            half[np.isnan(mean)] = 0.0   # no bar, no error bar
             v = np.nan_to_num(mean)
             err = np.array([np.minimum(half, v), np.minimum(half, 100.0 - v)])  # [2, scenarios]
             label, colour = _DETECTOR_STYLE[det]
             ax.bar(xs, v, width, color=colour, label=label, yerr=err, capsize=2.0,
                    error_kw={"lw": 0.8})
-            for xi, m, top in zip(xs, mean, v + err[1]):
-                ax.text(xi, top + 1.0, "n/a" if np.isnan(m) else f"{m:.1f}", rotation=90,
+            for xi, m, top, s in zip(xs, mean, v + err[1], names):
+                tag = "uninf." if det in _uninformative(metrics, s) else "n/a"
+                ax.text(xi, top + 1.0, tag if np.isnan(m) else f"{m:.1f}", rotation=90,
                         ha="center", va="bottom", fontsize=6)
         ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s in names])
         ax.set_xlim(-0.6, max(len(names), 1) - 0.4)
@@ -203,42 +224,66 @@ def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
     return path
 
 
-def plot_detection_rates(metrics: dict, path: str | Path, title: str | None = None,
-                         reference: dict | None = None) -> Path:
+def plot_detection_rates(metrics: dict, path: str | Path | None, title: str | None = None,
+                         reference: dict | None = None, ax=None):
     """Grouped correct-decision-rate bars: x = scenario, one bar per detector, values written on.
 
-    Undefined (None) rates get no bar and an "n/a" label. ``reference`` ({scenario: {detector:
-    percent}}, e.g. the paper's Fig. "techniques") is drawn as dashed black outlines labelled
-    "paper".
+    Undefined (None) rates get no bar and an "n/a" label; a detector a scenario flags
+    uninformative (its ``uninformative_detectors``: its rejections are no detections) gets no
+    bar and an "uninf." label. ``reference`` ({scenario: {detector: percent}}, e.g. the paper's
+    Fig. "techniques") is drawn as dashed black outlines labelled "paper".
+
+    :param ax: a matplotlib ``Axes`` to draw on instead (``path`` unused, nothing saved, the
+        axes' ``Figure`` returned); without it the figure is saved to ``path``, returned
     """
     entries = _scenarios(metrics, "correct_decision_rate")
     reference = reference or {}
     if not isinstance(reference, dict):
         raise TypeError(f"Argument `reference` must be a dict or None, "
                         f"not {type(reference).__name__}")
-    width = 0.16
+    if ax is not None:
+        _draw_detection_rates(ax, metrics, entries, reference)
+        if title:
+            ax.set_title(title)
+        return ax.figure
     path = Path(path)
     with figure(path, title, figsize=(9.0, 4.5), margins_in=_BAR_MARGINS_IN["rates"]) as (_, ax):
-        x = np.arange(len(entries), dtype=float)
-        offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
-        xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
-        vals = np.array([[_value(e, d) for _, e in entries] for d in DETECTORS])
-        refs = np.array([[_value(reference.get(s) or {}, d) for s, _ in entries]
-                         for d in DETECTORS])
-        for det, xk, vk in zip(DETECTORS, xs, vals):
-            label, colour = _DETECTOR_STYLE[det]
-            ax.bar(xk, np.nan_to_num(vk), width, color=colour, label=label)
-        ref = np.isfinite(refs)
-        if ref.any():
-            ax.bar(xs[ref], refs[ref], width, fill=False, edgecolor="k", ls="--", lw=0.8,
-                   label="paper")
-        for xi, v, r in zip(xs.ravel(), vals.ravel(), refs.ravel()):
-            ax.text(xi, np.nanmax([0.0, v, r]) + 1.0, "n/a" if np.isnan(v) else f"{v:.1f}",
-                    rotation=90, ha="center", va="bottom", fontsize=6)
-        ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s, _ in entries])
-        ax.set_xlim(-0.6, max(len(entries), 1) - 0.4)
-        _percent_axis(ax, 118.0, "Correct decision rate [%]", bool(entries), ncols=6)
+        _draw_detection_rates(ax, metrics, entries, reference)
     return path
+
+
+def _draw_detection_rates(ax, metrics: dict, entries: list, reference: dict) -> None:
+    """The bars of :func:`plot_detection_rates` on ``ax``."""
+    width = 0.16
+    x = np.arange(len(entries), dtype=float)
+    offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
+    xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
+    uninf = [_uninformative(metrics, s) for s, _ in entries]
+    vals = np.array([[np.nan if d in u else _value(e, d) for (_, e), u in zip(entries, uninf)]
+                     for d in DETECTORS])
+    tags = [["uninf." if d in u else "n/a" for u in uninf] for d in DETECTORS]
+    refs = np.array([[_value(reference.get(s) or {}, d) for s, _ in entries]
+                     for d in DETECTORS])
+    for det, xk, vk in zip(DETECTORS, xs, vals):
+        label, colour = _DETECTOR_STYLE[det]
+        ax.bar(xk, np.nan_to_num(vk), width, color=colour, label=label)
+    ref = np.isfinite(refs)
+    if ref.any():
+        ax.bar(xs[ref], refs[ref], width, fill=False, edgecolor="k", ls="--", lw=0.8,
+               label="paper")
+    for xi, v, r, tag in zip(xs.ravel(), vals.ravel(), refs.ravel(), np.ravel(tags)):
+        ax.text(xi, np.nanmax([0.0, v, r]) + 1.0, tag if np.isnan(v) else f"{v:.1f}",
+                rotation=90, ha="center", va="bottom", fontsize=6)
+    ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s, _ in entries])
+    ax.set_xlim(-0.6, max(len(entries), 1) - 0.4)
+    _percent_axis(ax, 118.0, "Correct decision rate [%]", bool(entries), ncols=6)
+
+
+def _uninformative(metrics: dict, scenario: str) -> set:
+    """The detectors ``scenario`` flags uninformative in ``metrics`` (a metrics.json dict or its
+    ``scenarios`` block)."""
+    sc = metrics.get("scenarios", metrics) if isinstance(metrics, dict) else {}
+    return set((sc.get(scenario) or {}).get("uninformative_detectors") or ())
 
 
 def _columns(rows: dict, names) -> list[np.ndarray]:
@@ -648,10 +693,16 @@ def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | No
             w = 0.8 / len(models)
             for k, m in enumerate(models):
                 rates = (detectors[m].get(s) or {}).get("correct_decision_rate") or {}
-                v = [_value(rates, d) for d in DETECTORS]
-                ax.bar(x + (k - (len(models) - 1) / 2) * w, v, w,
+                uninf = _uninformative(detectors[m], s)   # no bar: no detection to show
+                v = [np.nan if d in uninf else _value(rates, d) for d in DETECTORS]
+                xk = x + (k - (len(models) - 1) / 2) * w
+                ax.bar(xk, np.nan_to_num(v), w,
                        color=[_DETECTOR_STYLE[d][1] for d in DETECTORS], hatch=hatches.get(m, "xx"),
                        edgecolor="white", label=m)
+                for xi, d in zip(xk, DETECTORS):
+                    if d in uninf:
+                        ax.text(xi, 1.0, "uninf.", rotation=90, ha="center", va="bottom",
+                                fontsize=6)
             ax.set_xticks(x, [_DETECTOR_STYLE[d][0] for d in DETECTORS], fontsize=8)
             ax.set_ylim(0, 105)
             ax.set_title(_SCENARIO_LABELS[s])

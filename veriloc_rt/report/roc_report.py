@@ -27,8 +27,8 @@ ROC_TITLE = ("ROC per attack (o: configured threshold; AUC in the legend; x line
              "log above)")
 
 #: display label and colour of each decision (the single detectors' as in the other plots)
-LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DS", (0.7, 0.0, 0.0)),
-          "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("HS", (1.0, 0.6, 0.2)),
+LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DigSig", (0.7, 0.0, 0.0)),
+          "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("Handshake", (1.0, 0.6, 0.2)),
           "Tracking": ("Tracking", (0.3, 0.3, 0.3)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
           "NPFusion": ("NP fusion (test third)", (0.0, 0.55, 0.0))}
 
@@ -55,7 +55,8 @@ def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
 
 def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = None) -> Path:
     """One panel per attack: the ROC of each decision, its configured operating point as a
-    marker, the AUC in the legend; uninformative detectors dashed."""
+    marker, the AUC in the legend; uninformative detectors dashed, without an operating point
+    (at their configured threshold their rejections are no detections)."""
     m = analysis.metrics
     attacks = list(m["attacks"])
     k = m["fusion"]["k"]
@@ -74,8 +75,9 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
                         drawstyle="default",
                         label=f"{label} {m['attacks'][s][name]['auc']:.3f}"
                         + (" (uninf.)" if name in analysis.uninformative else ""))
-                _, ba, ar = analysis.operating[(name, s)]
-                ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
+                if name not in analysis.uninformative:
+                    _, ba, ar = analysis.operating[(name, s)]
+                    ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
             chance = np.linspace(0.0, 1.0, 201)
             ax.plot(chance, chance, ":", color="0.6", lw=0.8)
             # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
@@ -99,12 +101,15 @@ def format_detection(roc: dict) -> str:
     short = {**{d: LABELS[d][0] for d in DETECTORS}, "KofN": f"{roc['fusion']['k']}-of-5",
              "NPFusion": "NP fusion"}
     head = "ROC          " + " ".join(f"{short[n]:>15s}" for n in names)
-    lines = [head + "   (AUC  benign-accept/attack-reject % at the configured threshold)"]
+    lines = [head + "   (AUC  benign-accept/attack-reject % at the configured threshold; "
+                    "uninf.: no attack rate for an uninformative detector)"]
+    uninf = set(roc["uninformative"])
     for s, per in roc["attacks"].items():
         cells = []
         for n in names:
             e = per.get(n)
             cells.append(f"{'n/a':>15s}" if e is None else
+                         f"{e['auc']:5.3f}   uninf.  " if n in uninf else
                          f"{e['auc']:5.3f} {100 * e['benign_accept']:4.0f}/"
                          f"{100 * e['attack_reject']:<4.0f}")
         lines.append(f"{s:12s} " + " ".join(f"{c:>15s}" for c in cells))
@@ -116,14 +121,19 @@ def format_detection(roc: dict) -> str:
     f = roc["fusion"]
     if "test" in f:
         total = f["fit_indices"] + f["calibration_indices"] + f["test_indices"]
+        target = 100 * f["false_alarm"]
         lines.append(f"fused on the test third ({f['test_indices']} of {total} indices; NP "
-                     f"fusion fitted on {f['fit_indices']}, its threshold on "
-                     f"{f['calibration_indices']}), detection % at false alarm <= "
-                     f"{100 * f['false_alarm']:g} %:")
+                     f"fusion fitted on {f['fit_indices']}, its threshold set for false alarm "
+                     f"<= {target:g} % on the {f['calibration_indices']} calibration indices "
+                     f"({100 * f['np_calibration_false_alarm']:.1f} % there), its false alarm "
+                     f"on the test third as measured; the vote and single detectors at their "
+                     f"best threshold with test false alarm <= {target:g} %), detection %:")
         for s, t in f["test"].items():
             b = t["best_single"]
+            fa = 100 * t["NPFusion"]["false_alarm"]
+            over = f" > target {target:g}" if fa > target else ""
             lines.append(f"  {s:11s} NP fusion {100 * t['NPFusion']['attack_reject']:5.1f} "
-                         f"(false alarm {100 * t['NPFusion']['false_alarm']:4.1f}, AUC "
+                         f"(false alarm {fa:4.1f}{over}, AUC "
                          f"{t['NPFusion']['auc']:.3f})  vote at its best k "
                          f"{100 * t['KofN']['attack_reject']:5.1f}  best single {b} "
                          f"{100 * t[b]['attack_reject']:5.1f} (AUC {t[b]['auc']:.3f}, oracle "

@@ -19,7 +19,6 @@ cluster (``scheduler``), with the serial run's numbers either way (see the execu
 
 from __future__ import annotations
 
-import json
 import logging
 import resource
 import time
@@ -32,7 +31,7 @@ import numpy as np
 
 from ..config import Config
 from ..errors import InputError
-from ..fileio import atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import read_text
 from ..propagation.raytrace import Propagation, trace
 from ..propagation.stochastic import STOCHASTIC_MODELS, stochastic_propagation
@@ -49,6 +48,7 @@ from .executors import DaskChains, ForkPool, LocalChains, check_workers, schedul
 from .chain_store import ChainStore, config_digest
 from .run_folder import (CHAIN_FILE, MAX_RESULTS_BYTES, check_fresh, check_resume,
                          clear_run_files, locked, mark_stopped, run_keys, write_run_json)
+from .progress import progress_callback
 from .runner import ScenarioRunner
 
 log = logging.getLogger(__name__)
@@ -117,9 +117,9 @@ def _peak_rss_mib() -> dict:
             "peak_rss_worker_mib": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0}
 
 
-def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | None = None,
+def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | bool | None = None,
         resume: bool = False, workers: int = 1, scheduler=None, force: bool = False,
-        cache_dir: str | Path | None = "default") -> Results:
+        cache_dir: str | Path | None = "default", save_cir: bool = False) -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
 
     One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
@@ -131,7 +131,8 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     the inputs are checked and the geometry is built. A run that ends unfinished (an
     exception, Ctrl-C, SIGTERM) records the status ``stopped`` in ``run.json``.
 
-    :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar)
+    :param progress: called as ``progress(stage, done, total)`` (the CLI draws a bar); True:
+        a progress bar per stage on stderr (tqdm), as the CLI shows
     :param resume: keep the rows and chain results already in ``out_dir`` and continue after
         them (also after a stop during ray tracing: ``run.json`` is written before it)
     :param workers: processes computing the per-point chains (forked; the detectors, which
@@ -143,11 +144,23 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
     :param cache_dir: the ray tracer's cache folder: "default" is the config's
         ``propagation.raytrace.cache_dir`` (a relative one under this process's working
         directory), None none
+    :param save_cir: also write the run's CIRs into ``out_dir``: ``cir_bs_to_ue.npz``,
+        ``cir_bs_to_adversary.npz``, ``cir_adversary_to_ue.npz`` (:meth:`CIR.to_arrays`; read
+        back with ``CIR.from_arrays(np.load(path))``, then ``.to_sionna(point)``)
     :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``,
         ``<file>: ...`` (a file of the folder that is not a regular one, a damaged ``run.json``
         or results CSV on resume)
     """
     check_workers(workers, scheduler)
+    bar = progress if progress is True else None
+    progress = progress_callback(progress)
+    if bar is not None:
+        bar = progress
+        try:
+            return run(cfg, out_dir, progress, resume, workers, scheduler, force, cache_dir,
+                       save_cir)
+        finally:
+            bar.close()
     # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
     # relative --out left relative to the caller's working directory
     out = Path(out_dir).resolve() if out_dir is not None else None
@@ -165,7 +178,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
             else:
                 check_fresh(out, cfg, force)
         try:
-            return _run(cfg, out, progress, resume, workers, client, cache_dir)
+            return _run(cfg, out, progress, resume, workers, client, cache_dir, save_cir)
         except BaseException:   # Ctrl-C, SIGTERM, a full disk, an error: resumable
             if out is not None:
                 mark_stopped(out)
@@ -173,8 +186,9 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | Non
 
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
-         client, cache_dir: str | Path | None = "default") -> Results:
-    timing: dict = {}
+         client, cache_dir: str | Path | None = "default", save_cir: bool = False) -> Results:
+    timing: dict = {}     # seconds only
+    resources: dict = {}  # workers, scheduler, peak memory
     t0 = time.perf_counter()
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
     geometry = build_geometry(cfg, scene_dir)
@@ -196,7 +210,12 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     warn_silent_bs(prop.bs_ue.has_path(), geometry.serving)
     summary = propagation_summary(geometry, prop)
     if out:
-        atomic_write_text(out / "propagation_summary.json", json.dumps(summary, indent=2))
+        atomic_write_text(out / "propagation_summary.json", json_text(summary))
+        if save_cir:
+            for name, cir in (("bs_to_ue", prop.bs_ue), ("bs_to_adversary", prop.bs_adv),
+                              ("adversary_to_ue", prop.adv_ue)):
+                with atomic_output(out / f"cir_{name}.npz") as tmp:
+                    np.savez_compressed(tmp, **cir.to_arrays())
         write_run_json(out, cfg, "running", timing, fields)
 
     runner = ScenarioRunner(cfg, geometry, prop, keys)
@@ -205,7 +224,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     try:
         if client is not None:
             pool = DaskChains(runner, client)
-            timing["scheduler"] = client.scheduler.address
+            resources["scheduler"] = client.scheduler.address
         elif workers > 1:
             pool = ForkPool(runner, workers)
         rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing, store)
@@ -219,10 +238,12 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     if pool is not None:
         pool.close()
     timing.update({f"{k}_total": v for k, v in runner.timing.items()})
-    timing["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
+    resources["workers"] = pool.threads if isinstance(pool, DaskChains) else workers
     timing["total"] = time.perf_counter() - t0
-    timing.update(_peak_rss_mib())
+    resources.update(_peak_rss_mib())
     metrics["timing_s"] = timing
+    metrics["resources"] = resources
+    fields["resources"] = resources
     metrics["propagation_model"] = cfg.propagation.model
     metrics["doppler_hz"] = {"max_path": runner.max_doppler_hz, "scan": runner.doppler_scan_hz}
     analysis = analyse_detection(rows, cfg)
@@ -232,7 +253,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
             if s != "none":
                 m["uninformative_detectors"] = list(analysis.uninformative)
     if out:
-        atomic_write_text(out / "metrics.json", json.dumps(metrics, indent=2))
+        atomic_write_text(out / "metrics.json", json_text(metrics))
         _write_plots(out, metrics)
         if analysis is not None:
             write_roc_csv(out / "roc.csv", analysis)

@@ -25,7 +25,6 @@ any input files under the same paths). At the end ``out/`` gets:
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import math
 import time
@@ -38,7 +37,7 @@ import numpy as np
 from ..config import Config
 from ..detectors.outcomes import DETECTORS, OUTCOMES
 from ..errors import InputError
-from ..fileio import atomic_output, atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import parse_json, read_text
 from ..report import plots
 from ..rng import stream
@@ -127,6 +126,11 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
             for k in names:
                 agg[g][k], ci[g][k], defined[g][k] = mean_ci([(m.get(g) or {}).get(k)
                                                               for m in ms], level)
+        flagged = [d for d in dict.fromkeys(d for m in ms
+                                            for d in m.get("uninformative_detectors") or ())]
+        if any("uninformative_detectors" in m for m in ms):
+            # flagged in any realisation: its mean attack rate mixes in no-detections
+            agg["uninformative_detectors"] = flagged
         agg["realisations"] = n
         agg["ci95"] = ci
         agg["realisations_defined"] = defined
@@ -233,18 +237,20 @@ def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int,
             log.info("realisation %d of %d done", real["index"] + 1, n)
     agg = aggregate(metrics)
     timing = _timing(metrics, time.perf_counter() - t0)
-    timing["workers"] = (sum(client.nthreads().values()) if client is not None
-                         else min(workers, n))
+    resources = {"workers": (sum(client.nthreads().values()) if client is not None
+                             else min(workers, n))}
     if client is not None:
-        timing["scheduler"] = client.scheduler.address
+        resources["scheduler"] = client.scheduler.address
     agg["timing_s"] = timing
+    agg["resources"] = resources
     agg["propagation_model"] = cfg.propagation.model
     for real, m in zip(reals, metrics):
         real["metrics"] = m
-    atomic_write_text(out / "metrics.json", json.dumps(agg, indent=2))
+    atomic_write_text(out / "metrics.json", json_text(agg))
     write_csv(out / "montecarlo.csv", reals)
     _write_plots(out, cfg, agg)
-    write_run_json(out, cfg, "complete", timing, _listing(reals), versions=MC_VERSIONS)
+    write_run_json(out, cfg, "complete", timing, {**_listing(reals), "resources": resources},
+                   versions=MC_VERSIONS)
     summary = [{"index": real["index"], "seed": real["config"].seed,
                 "topology_iteration": real["config"].topology.iteration, "dir": real["dir"],
                 "metrics": real["metrics"]} for real in reals]
@@ -291,7 +297,7 @@ def _timing(metrics: list[dict], wall_s: float) -> dict:
     out: dict = {}
     for m in metrics:
         for k, v in m.get("timing_s", {}).items():
-            if isinstance(v, (int, float)) and not isinstance(v, bool) and k != "workers":
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
                 out[k] = out.get(k, 0.0) + float(v)
     out["realisations_total"] = out.pop("total", 0.0)
     out["total"] = wall_s

@@ -31,7 +31,7 @@ from typing import Iterator
 from ..config import Config, config_to_dict
 from ..config.run import SCENARIOS
 from ..errors import InputError, short_repr
-from ..fileio import TMP_MARK, atomic_write_text
+from ..fileio import TMP_MARK, atomic_write_text, json_text
 from ..inputs import decode_text, read_bytes
 from ..phy.security.keys import load_keys, simulated_keys
 from ..rng import stream
@@ -53,6 +53,8 @@ CHAIN_FILE = "chains.bin"
 RUN_FILES = ("run.json", "metrics.json", "propagation_summary.json", CHAIN_FILE, "outcomes.png",
              "detection_rates.png", "scene_top_view.png", "montecarlo.csv",
              "montecarlo_detection_rates.png", "roc.csv", "roc.png",
+             *(f"cir_{links}.npz" for links in ("bs_to_ue", "bs_to_adversary",
+                                                "adversary_to_ue")),
              *(f"{s}_{kind}" for s in SCENARIOS
                for kind in ("results.csv", "links.csv", "timeseries.png", "map.png")))
 
@@ -154,7 +156,7 @@ def _saved_config(path: Path) -> dict:
 
 
 def _same(saved: dict, cfg: Config) -> bool:
-    return saved == json.loads(json.dumps(config_to_dict(cfg)))
+    return saved == json.loads(json_text(config_to_dict(cfg)))
 
 
 def same_config(path: Path, cfg: Config) -> bool:
@@ -310,7 +312,7 @@ def mark_stopped(out: Path) -> None:
         info = read_run_json(path)
         if info.get("status") == "running":
             info["status"] = "stopped"
-            atomic_write_text(path, json.dumps(info, indent=2))
+            atomic_write_text(path, json_text(info))
     except (InputError, OSError) as exc:   # the run's own error is the message
         log.info("%s: could not record the status 'stopped' (%s)", path, exc)
 
@@ -358,14 +360,49 @@ def locked(out: Path) -> Iterator[Path]:
         lock.release()
 
 
+def _relative(out: Path, value):
+    """A path inside ``out`` as text relative to ``out`` (the folder can be moved); any other
+    value as it is."""
+    if isinstance(value, (str, Path)) and os.path.isabs(value):
+        try:
+            return Path(value).relative_to(out).as_posix()
+        except ValueError:
+            return str(value)
+    return value
+
+
+def git_revision() -> str | None:
+    """The commit of the package's source checkout (``git rev-parse HEAD``, with ``-dirty``
+    appended when tracked files differ from it), or None when the package is not at the top of
+    a git work tree (an installed copy) or git is missing."""
+    import subprocess
+
+    here = Path(__file__).resolve().parents[2]   # the folder holding veriloc_rt/
+    try:
+        top, rev = subprocess.run(["git", "-C", str(here), "rev-parse", "--show-toplevel",
+                                   "HEAD"], capture_output=True, text=True, timeout=10,
+                                  check=True).stdout.split()
+        if Path(top).resolve() != here:  # an installed copy inside some other repository
+            return None
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain",
+                                "--untracked-files=no"], capture_output=True, text=True,
+                               timeout=10, check=True).stdout.strip()
+    except (OSError, ValueError, subprocess.SubprocessError):
+        return None
+    return f"{rev}-dirty" if dirty else rev or None
+
+
 def write_run_json(out: Path, cfg: Config, status: str, timing: dict, fields: dict | None = None,
                    versions: tuple[str, ...] = ()) -> None:
     """Write ``out/run.json`` atomically (a temporary file renamed over it).
 
     :param status: ``running``, ``stopped`` (:func:`mark_stopped`) or ``complete``
-    :param fields: further top-level entries (the scene XML, the realisations)
+    :param fields: further top-level entries (the scene XML, the realisations); a path inside
+        ``out`` is written relative to ``out``
     :param versions: distributions recorded besides :data:`VERSIONED`
     """
-    info = {"config": config_to_dict(cfg), "seed": cfg.seed, "status": status, **(fields or {}),
-            "versions": package_versions(*versions), "timing_s": timing}
-    atomic_write_text(out / "run.json", json.dumps(info, indent=2))
+    info = {"config": config_to_dict(cfg), "seed": cfg.seed, "status": status,
+            **{k: _relative(out, v) for k, v in (fields or {}).items()},
+            "versions": package_versions(*versions), "git_revision": git_revision(),
+            "timing_s": timing}
+    atomic_write_text(out / "run.json", json_text(info))

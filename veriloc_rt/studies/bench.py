@@ -42,8 +42,6 @@ JSON and a markdown table are written by :func:`write_bench`.
 
 from __future__ import annotations
 
-import copy
-import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -52,9 +50,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..config import Config, config_from_dict, config_to_dict
+from ..config import Config, config_to_dict
 from ..constants import SPEED_OF_LIGHT
-from ..fileio import atomic_output, atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 from ..propagation import link_metrics as lm
 from ..world.geometry import build_geometry
@@ -249,15 +247,8 @@ def _get(d: dict, path: str):
 
 def patched_config(cfg: Config, patch: dict) -> Config:
     """``cfg`` with the fields of ``patch`` (dotted path -> value, as :attr:`Setting.patch`)
-    replaced, validated again."""
-    data = copy.deepcopy(config_to_dict(cfg))
-    for path, value in patch.items():
-        node = data
-        keys = path.split(".")
-        for k in keys[:-1]:
-            node = node[k]
-        node[keys[-1]] = value
-    return config_from_dict(data)
+    replaced, validated again (:meth:`Config.updated`)."""
+    return cfg.updated(patch)
 
 
 def sweep_settings(cfg: Config, quick: bool = False, groups: tuple[str, ...] | None = None) -> list[Setting]:
@@ -684,8 +675,7 @@ def write_bench(res: BenchResult, out_dir: str | Path) -> dict:
         w.writeheader()
         for r in rows:
             w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_FIELDS})
-    atomic_write_text(out / "bench.json", json.dumps({"meta": res.meta, "settings": rows},
-                                                     indent=2))
+    atomic_write_text(out / "bench.json", json_text({"meta": res.meta, "settings": rows}))
     md = (f"# Fidelity sweep ({res.meta['num_points']} points, propagation "
           f"{res.meta['propagation_model']}, seed {res.meta['seed']})\n\n"
           "Deviations are from the reference (highest level of every knob of the group; for "

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import json
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,7 +46,7 @@ from typing import Callable
 import numpy as np
 
 from ..config import Config
-from ..fileio import atomic_output, atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles
 from .validate import traced_pathloss_db
 from ..report.propagation_summary import rms_delay_spread
@@ -385,7 +384,7 @@ def markdown(res: ComparisonResult) -> str:
                       ("toa_bias_m", "ToA bias vs LoS delay, m"),
                       ("toa_bias_los_m", "ToA bias, LoS links, m"),
                       ("toa_bias_nlos_m", "ToA bias, NLoS links, m"),
-                      ("rstd_abs_error_m", "|RSTD error|, m"), ("aoa_error_deg", "AoA error, deg")):
+                      ("rstd_abs_error_m", "\\|RSTD error\\|, m"), ("aoa_error_deg", "AoA error, deg")):
         a, b = er[rt_m].get(key), er[tw_m].get(key)
         if a is None or b is None:
             continue
@@ -400,9 +399,13 @@ def markdown(res: ComparisonResult) -> str:
             m = dt[model].get(scen) or {}
             if not m.get("num_points"):
                 continue
-            rates = " | ".join(_f(m["correct_decision_rate"].get(d)) for d in DETECTORS)
+            uninf = set(m.get("uninformative_detectors") or ())   # no detection to show
+            rates = " | ".join("uninf." if d in uninf else _f(m["correct_decision_rate"].get(d))
+                               for d in DETECTORS)
             outs = " | ".join(_f(m["outcomes"].get(o)) for o in OUTCOMES)
             L.append(f"| {scen} | {model} | {rates} | {outs} |")
+    L += ["", "`uninf.`: a detector that accepts under `detectors.min_benign_accept` of the "
+          "benign fixes; its rejections under attack are no detections."]
     return "\n".join(L) + "\n"
 
 
@@ -418,9 +421,9 @@ def _write(res: ComparisonResult, cfg: Config) -> None:
         out / "comparison.md",
         f"# Ray tracing vs {_twin_label(res)} ({len(res.benign[rt_m].points)} points, seed "
         f"{cfg.seed}, mode {cfg.propagation.uma_mode})\n\n" + markdown(res))
-    atomic_write_text(out / "comparison.json", json.dumps(
+    atomic_write_text(out / "comparison.json", json_text(
         {"twin": res.twin, "channel": res.channel, "errors": res.errors,
-         "detectors": res.detectors, "timing_s": res.timing_s}, indent=2))
+         "detectors": res.detectors, "timing_s": res.timing_s}))
     with atomic_output(out / "comparison_points.csv") as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["model", "point", "bs", "toa_bias_m", "rstd_error_m", "aoa_error_deg",

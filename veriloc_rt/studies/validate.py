@@ -22,7 +22,6 @@ Files: ``validation.json``, ``validation.md``, ``validation_links.csv``,
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -34,7 +33,7 @@ import numpy as np
 from ..config import Config
 from .diagnostics import finite_percentiles
 from ..errors import InputError
-from ..fileio import atomic_output, atomic_write_text
+from ..fileio import atomic_output, atomic_write_text, json_text
 from ..propagation import pathloss_models as plm
 from ..propagation.uma_params import uma_table
 from ..propagation.uma import uma_pathloss_db
@@ -383,9 +382,9 @@ def write_validation(res: ValidationResult) -> dict:
     files = {"json": out / "validation.json", "md": out / "validation.md",
              "csv": out / "validation_links.csv", "png": out / "validation_pathloss.png"}
     # every file through a temporary file renamed over it: a stopped validate leaves no half file
-    atomic_write_text(files["json"], json.dumps(
+    atomic_write_text(files["json"], json_text(
         {"inputs": res.inputs, "models": models, "summary": res.summary, "bins": res.bins,
-         "timing_s": res.timing_s}, indent=2))
+         "timing_s": res.timing_s}))
     inp = res.inputs
     atomic_write_text(
         files["md"],

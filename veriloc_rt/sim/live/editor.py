@@ -19,7 +19,7 @@ import stat
 import tempfile
 from pathlib import Path
 
-from ...config import config_from_dict, config_schema, config_to_dict, load_config
+from ...config import config_from_dict, config_schema, config_to_dict, load_config, patch_data
 from ...errors import InputError
 from ...fileio import atomic_output
 from ..checks import check_inputs
@@ -99,13 +99,9 @@ def form_fields(schema: dict | None = None, prefix: str = "") -> list[dict]:
 
 
 def set_field(data: dict, path: str, value) -> dict:
-    """``data`` with the dotted ``path`` set to ``value`` (sections created as needed)."""
-    *sections, leaf = path.split(".")
-    node = data
-    for s in sections:
-        node = node.setdefault(s, {})
-    node[leaf] = value
-    return data
+    """A copy of ``data`` with the dotted ``path`` set to ``value`` (sections created as
+    needed; :func:`~veriloc_rt.config.patch_data`, the one patch helper)."""
+    return patch_data(data, {path: value})
 
 
 def check_config(data, inputs: bool = False, file_details: bool = True) -> InputError | None:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...fileio import atomic_files, atomic_write_text
+from ...fileio import atomic_files, atomic_write_text, json_text
 from ...inputs import check_path, read_bytes
 from .export import SCENE_FILE, write_ply
 from .osm import (DEFAULT_HEIGHT_M, FORMAT_VERSION, HIGHWAYS, MAX_OSM_BYTES, STOREY_M, OsmCity,
@@ -63,7 +63,8 @@ def write_osm_scene(city: OsmCity, out_dir, *, ground_material: str = "medium_dr
     lines += ["</scene>", ""]
     streets = {"nodes": np.round(city.street_nodes, 4).tolist(),
                "edges": city.street_edges.tolist()}
-    atomic_write_text(out / "streets.json", json.dumps(streets, separators=(",", ":")) + "\n")
+    atomic_write_text(out / "streets.json",
+                      json_text(streets, indent=None, separators=(",", ":")) + "\n")
     info = {"format_version": FORMAT_VERSION, "crs": city.crs,
             "origin_lonlat_deg": list(city.origin_lonlat_deg),
             "frame": "x east, y north, z up, m; transverse Mercator centred on origin_lonlat_deg",
@@ -76,7 +77,7 @@ def write_osm_scene(city: OsmCity, out_dir, *, ground_material: str = "medium_dr
             "num_street_nodes": len(city.street_nodes),
             "num_street_edges": len(city.street_edges), "highways": list(HIGHWAYS),
             **(meta or {})}
-    atomic_write_text(out / "scene.json", json.dumps(info, indent=2) + "\n")
+    atomic_write_text(out / "scene.json", json_text(info) + "\n")
     xml = out / SCENE_FILE
     atomic_write_text(xml, "\n".join(lines))
     return xml

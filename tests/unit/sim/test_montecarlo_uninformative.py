@@ -1,0 +1,58 @@
+"""A Monte Carlo shows no mean attack rate for a detector flagged uninformative in any
+realisation (issue #40): the aggregate lists it, the printed table and the CI bar chart leave
+its attack bars out."""
+
+from __future__ import annotations
+
+from veriloc_rt.cli import format_montecarlo
+from veriloc_rt.detectors.outcomes import DETECTORS
+from veriloc_rt.report import plots
+from veriloc_rt.sim.montecarlo import aggregate
+
+
+def _metrics(flagged: list[str]) -> dict:
+    rates = {d: 100.0 for d in DETECTORS}
+    outcomes = {"success": 50.0, "large_error": 50.0, "service_failure": 0.0}
+    return {"scenarios": {
+        "none": {"num_points": 8, "num_evaluated": 8, "outcomes": outcomes,
+                 "correct_decision_rate": {d: 90.0 for d in DETECTORS}},
+        "fbs": {"num_points": 8, "num_evaluated": 4, "outcomes": outcomes,
+                "correct_decision_rate": rates, "uninformative_detectors": flagged}}}
+
+
+def test_flag_of_any_realisation_hides_the_mean_attack_rate(tmp_path):
+    agg = aggregate([_metrics(["DigSig"]), _metrics([])])
+    assert agg["scenarios"]["fbs"]["uninformative_detectors"] == ["DigSig"]
+    assert "uninformative_detectors" not in agg["scenarios"]["none"]
+    line = next(ln for ln in format_montecarlo(agg).splitlines() if ln.startswith("fbs"))
+    cells = line.split("|")[0].split()[1:]
+    assert cells[DETECTORS.index("DigSig")] == "uninf."
+    assert cells[DETECTORS.index("HMAC")] == "100.0±0.0"
+    # the bar chart: heights and error bars as drawn, before the figure is cleared
+    seen = {}
+    real = plots.figure
+
+    def keep(*a, **k):
+        cm = real(*a, **k)
+
+        class Wrap:
+            def __enter__(self):
+                seen["fa"] = cm.__enter__()
+                return seen["fa"]
+
+            def __exit__(self, *exc):
+                ax = seen["fa"][1]
+                seen["bars"] = {c.get_label(): [p.get_height() for p in c.patches]
+                                for c in ax.containers if hasattr(c, "patches")}
+                seen["texts"] = [t.get_text() for t in ax.texts]
+                return cm.__exit__(*exc)
+        return Wrap()
+
+    plots.figure = keep
+    try:
+        plots.plot_rates_ci(agg, tmp_path / "ci.png")
+    finally:
+        plots.figure = real
+    assert seen["bars"]["DigSig"] == [90.0, 0.0]   # none, fbs: no attack bar
+    assert seen["bars"]["HMAC"] == [90.0, 100.0]
+    assert seen["texts"].count("uninf.") == 1
