@@ -47,6 +47,7 @@ import numpy as np
 from ..config import Config
 from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
+from ..detectors.statistics import auth_share_verdict, integrity_verdict
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..phy.channel import Links
 from ..phy.chain.receiver import reference_trp
@@ -341,6 +342,12 @@ class ScenarioRunner:
         row.fix_cov = cov
         if self.cfg.trp_outputs:
             row.auth = authenticated_fix(res, self.roles["standard"].chain, self.prop.bs_ue, i)
+            extra = {"Integrity": integrity_verdict(res.position,
+                                                    self.cfg.receiver.integrity_false_alarm),
+                     "AuthShare": auth_share_verdict(row.auth[0],
+                                                     self.cfg.detectors.min_auth_share)}
+            row.verdicts.update({d: ok for d, (ok, _) in extra.items()})
+            row.stats.update({d: st for d, (_, st) in extra.items()})
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
