@@ -245,6 +245,9 @@ LINKS_DOC = {
     "tag_verified": "1 if every checked tag of the TRP verified",
     "used": "1 if the DL fix used the TRP",
     "excluded": "1 if the integrity test excluded the TRP",
+    "peak_snr_db": "the ToA correlation peak's SNR over its noise floor, dB, what the weighted "
+                   "fit's range std comes from (`receiver.range_error_model`; empty when not "
+                   "heard)",
 }
 
 #: per-scenario keys of metrics.json (scenario_metrics)

@@ -392,7 +392,8 @@ def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
     (``channel.prs_power``) over the noise per RE. ToA error: c toa - the 3-D distance (the
     receiver's timing reference is the earliest true arrival less a guard, so its ToAs are
     absolute); RSTD error: ToA error minus the fix reference's (empty for the reference);
-    AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg.
+    AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg;
+    peak SNR: the correlation peak's post-integration SNR the fix weights by (heard TRPs).
 
     :returns: ((bs_heard, bs_used, bs_excluded), [per TRP: LINK_COLUMNS after ``index``])
     """
@@ -415,5 +416,7 @@ def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
     excluded = tuple(int(j) for j in fix.excluded)
     links = [(k, int(bs_ue.tx_index[i, k]), float(dist[k]), float(rx_dbm[k]), float(snr_db[k]),
               bool(res.detected[k]), float(toa_err[k]), float(rstd_err[k]), float(aoa_err[k]),
-              bool(res.tags_valid[k]), k in used, k in excluded) for k in range(len(pos))]
+              bool(res.tags_valid[k]), k in used, k in excluded,
+              float(np.asarray(res.peak_snr_db, float)[k]) if res.detected[k] else float("nan"))
+             for k in range(len(pos))]
     return (int(np.sum(res.detected)), len(used), ";".join(map(str, excluded))), links
