@@ -5,7 +5,8 @@ benign scenario, the TRPs heard and used per fix (median, quartiles) and the sha
 integrity test excluded a TRP from (the benign false-exclusion rate, with its exact binomial
 95 % interval, beside the test's nominal size ``receiver.integrity_false_alarm``); for the
 ``fbs`` scenario in ``bias`` mode, over the attack window, the share of points at which each
-spoofed TRP (``threats.fbs.spoofed_slots``) was excluded, and the outcomes.
+spoofed TRP (``threats.fbs.spoofed_slots``) was excluded, and the outcomes; and the Integrity
+and AuthShare detectors' benign acceptance, AUC and detection rate from ``metrics.json``.
 
     .venv/bin/python scripts/trps_summary.py RUN_DIR
 """
@@ -80,6 +81,17 @@ def main(argv: list[str]) -> int:
         outcomes = {o: sum(r["outcome"] == o for r in rows) for o in
                     ("success", "large_error", "service_failure")}
         print(f"  fbs attack-window outcomes: {outcomes}")
+    try:
+        roc = json.loads((run / "metrics.json").read_text()).get("roc") or {}
+    except (OSError, ValueError):
+        roc = {}
+    for d in ("Integrity", "AuthShare"):
+        if d in roc.get("detectors", {}):
+            per = "; ".join(f"{s}: AUC {e[d]['auc']:.3f}, attack rejected "
+                            f"{100 * e[d]['attack_reject']:.1f} %"
+                            for s, e in roc["attacks"].items() if d in e)
+            print(f"  detector {d}: benign accepted "
+                  f"{100 * roc['detectors'][d]['benign_accept']:.1f} %; {per}")
     return 0
 
 

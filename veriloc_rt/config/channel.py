@@ -152,6 +152,13 @@ class ReceiverConfig:
                                          "test of the whitened RSTD residuals (the benign "
                                          "false-alarm rate it is designed for; a stated "
                                          "choice)", lo=1e-9, hi=0.5)
+    range_error_model: str = param("crlb", "weighted fit: each ToA's range std is 'crlb' (the "
+                                   "CRLB from its peak SNR plus range_std_floor_m), or "
+                                   "'overbound' (the larger of that and the Gaussian overbound "
+                                   "of the measured first-arrival error in its peak-SNR bin, "
+                                   "from the calibration table veriloc_rt/data/"
+                                   "range_overbound.json: UMa fast fading, this simulator)",
+                                   choices=("crlb", "overbound"))
     fault_exclusion: bool = param(True, "weighted fit: exclude the anchor whose removal best "
                                   "explains a failed test, and re-test, while a degree of "
                                   "freedom remains (RAIM-style FDE)")

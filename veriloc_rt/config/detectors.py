@@ -117,6 +117,9 @@ class DetectorsConfig:
                                      "run's fixes at its threshold is reported as "
                                      "'uninformative', not as detecting the attacks", lo=0.0,
                                      hi=1.0)
+    min_auth_share: float = param(0.5, "runs with more than three TRPs: the AuthShare detector "
+                                  "accepts a point when at least this share of its fix's TRPs "
+                                  "had their tags verified", lo=0.0, hi=1.0)
 
     def validate(self, path: str = "detectors") -> None:
         if self.hmac.scheme != "hmac":

@@ -11,10 +11,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["DETECTORS", "OUTCOMES", "PointRow", "outcome_of"]
+__all__ = ["DETECTORS", "OUTCOMES", "PointRow", "TRP_DETECTORS", "outcome_of"]
 
 #: the detectors, in the paper's (and the CSV's) column order
 DETECTORS = ("HMAC", "DigSig", "ABSA", "Handshake", "Tracking")
+#: the detectors of runs with more than three TRPs (``Config.trp_outputs``), after
+#: :data:`DETECTORS`: the fix's integrity test and the per-anchor tag authentication
+TRP_DETECTORS = ("Integrity", "AuthShare")
 #: what a point comes to, from :func:`outcome_of`
 OUTCOMES = ("success", "large_error", "service_failure")
 
@@ -23,7 +26,8 @@ OUTCOMES = ("success", "large_error", "service_failure")
 class PointRow:
     """One trajectory point of one scenario (a CSV row).
 
-    time_s : float, s; verdicts : {detector: bool} (True valid); attack : bool
+    time_s : float, s; verdicts : {detector: bool} (True valid; :data:`DETECTORS`, and
+    :data:`TRP_DETECTORS` in a run with more than three TRPs); attack : bool
     true_xy, est_xy : [2] float64, m (est NaN without a fix); error_m : float (NaN without a fix)
     outcome : str; the ``*_enc`` fields: the same for encrypted PRS (None when not evaluated)
     stats : {detector: float}, each detector's decision statistic

@@ -7,7 +7,9 @@ false alarm, as in the paper); *attack* = an attack scenario's attack-window poi
 is :mod:`.roc`, the fusion's :mod:`.fusion`.
 
 * single detectors: the ROC of their statistic (:mod:`veriloc_rt.detectors.statistics`) over
-  every benign and attack point, with the configured threshold's operating point;
+  every benign and attack point, with the configured threshold's operating point; the five,
+  then in a run with more than three TRPs the ``Integrity`` test and ``AuthShare`` (their
+  statistics in every row), which also enter the vote and the NP fusion;
 * ``uninformative``: a detector whose benign acceptance at its threshold is below
   ``detectors.min_benign_accept``; its attack rejections are not detections (it rejects
   everything);
@@ -30,8 +32,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import Config
-from ..detectors.outcomes import DETECTORS
-from ..detectors.statistics import STATISTICS, accepts, configured_thresholds
+from ..detectors.outcomes import DETECTORS, TRP_DETECTORS
+from ..detectors.statistics import STATISTICS, TRP_STATISTICS, accepts, configured_thresholds
 from ..rng import stream
 from .fusion import CALIBRATE, FIT, TEST, NaiveBayesLR, kofn_votes, np_threshold, split_by_index
 from .roc import RocCurve, auc, detection_at_false_alarm, operating_point, roc_curve
@@ -48,21 +50,22 @@ ROC_COLUMNS = ("detector", "attack", "threshold", "benign_accept", "attack_rejec
 
 @dataclass
 class _Points:
-    """One scenario's selected points: index [n] int64; stats [n, 5] float64; valid [n, 5]
-    bool (the verdicts, :data:`DETECTORS` order)."""
+    """One scenario's selected points: index [n] int64; stats [n, d] float64; valid [n, d]
+    bool (the verdicts of the run's d detectors, :data:`DETECTORS` then the
+    :data:`TRP_DETECTORS` when present)."""
 
     index: np.ndarray
     stats: np.ndarray
     valid: np.ndarray
 
     @classmethod
-    def of(cls, rows: list, keep) -> "_Points":
+    def of(cls, rows: list, keep, names: tuple) -> "_Points":
         sel = [r for r in rows if keep(r)]
         return cls(np.array([r.index for r in sel], dtype=np.int64),
-                   np.array([[r.stats[d] for d in DETECTORS] for r in sel],
-                            dtype=np.float64).reshape(-1, len(DETECTORS)),
-                   np.array([[r.verdicts[d] for d in DETECTORS] for r in sel],
-                            dtype=bool).reshape(-1, len(DETECTORS)))
+                   np.array([[r.stats[d] for d in names] for r in sel],
+                            dtype=np.float64).reshape(-1, len(names)),
+                   np.array([[r.verdicts[d] for d in names] for r in sel],
+                            dtype=bool).reshape(-1, len(names)))
 
     def take(self, mask: np.ndarray) -> "_Points":
         return _Points(self.index[mask], self.stats[mask], self.valid[mask])
@@ -99,26 +102,31 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
     scenario, without benign fixes or attack points, or without statistics in the rows."""
     attacks = [s for s in rows if s != "none" and rows[s]]
     every = [r for s in rows for r in rows[s]]
-    if "none" not in rows or not attacks or any(set(r.stats) != set(DETECTORS) for r in every):
+    if "none" not in rows or not attacks or any(not set(DETECTORS) <= set(r.stats)
+                                                  for r in every):
         return None
-    benign = _Points.of(rows["none"], lambda r: r.outcome != "service_failure")
-    attack = {s: _Points.of(rows[s], lambda r: r.attack) for s in attacks}
+    # the TRP detectors (runs with more than three TRPs) when every row has them
+    dets = DETECTORS + tuple(d for d in TRP_DETECTORS
+                             if all(d in r.stats and d in r.verdicts for r in every))
+    benign = _Points.of(rows["none"], lambda r: r.outcome != "service_failure", dets)
+    attack = {s: _Points.of(rows[s], lambda r: r.attack, dets) for s in attacks}
     attacks = [s for s in attacks if attack[s].index.size]
     if not benign.index.size or not attacks:
         return None
     det = cfg.detectors
-    thr = configured_thresholds(det)
+    thr = configured_thresholds(det, cfg.receiver.integrity_false_alarm)
+    stat_of = {**STATISTICS, **TRP_STATISTICS}
     k = det.fusion.k
     res = DetectionAnalysis({})
     # -- single detectors and the vote, over every point ----------------------------------
     names = {d: (benign.stats[:, j], {s: attack[s].stats[:, j] for s in attacks},
-                 STATISTICS[d].accept, thr[d]) for j, d in enumerate(DETECTORS)}
+                 stat_of[d].accept, thr[d]) for j, d in enumerate(dets)}
     names["KofN"] = (kofn_votes(benign.valid), {s: kofn_votes(attack[s].valid) for s in attacks},
                      "<=", float(k - 1))
     summary: dict = {}
     for name, (b, a_by, acc, t) in names.items():
         ba = float(accepts(b, t, acc).mean())
-        summary[name] = {"statistic": STATISTICS[name].column if name in STATISTICS else "votes",
+        summary[name] = {"statistic": stat_of[name].column if name in stat_of else "votes",
                          "accept": acc, "threshold": t, "benign_accept": ba,
                          "uninformative": ba < det.min_benign_accept}
         if ba < det.min_benign_accept:
@@ -161,7 +169,7 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
             e = _entry(c, tau, sb, sa)
             res.operating[("NPFusion", s)] = (tau, e["benign_accept"], e["attack_reject"])
             res.metrics["attacks"][s]["NPFusion"] = e
-            test[s] = _test_comparison(b_te, a_te[s], sb, sa, tau, det.fusion.false_alarm)
+            test[s] = _test_comparison(b_te, a_te[s], sb, sa, tau, det.fusion.false_alarm, dets)
         fusion["test"] = test
     else:
         log.warning("NP fusion skipped: a part of the split has no benign or no attack point")
@@ -172,14 +180,16 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
     return res
 
 
-def _test_comparison(b_te: _Points, a_te: _Points, sb, sa, tau: float, alpha: float) -> dict:
+def _test_comparison(b_te: _Points, a_te: _Points, sb, sa, tau: float, alpha: float,
+                     dets: tuple = DETECTORS) -> dict:
     """On the test points of one attack: each decision's AUC and its detection rate at
     false-alarm rate <= alpha (the NP fusion at its calibrated threshold ``tau``; the others at
     their best vertex on these points, an oracle in their favour), and ``best_single``: the
     single detector with the highest such detection rate (then the highest AUC)."""
     out: dict = {}
-    for j, d in enumerate(DETECTORS):
-        c = roc_curve(b_te.stats[:, j], a_te.stats[:, j], STATISTICS[d].accept)
+    stat_of = {**STATISTICS, **TRP_STATISTICS}
+    for j, d in enumerate(dets):
+        c = roc_curve(b_te.stats[:, j], a_te.stats[:, j], stat_of[d].accept)
         t, fa, pd = detection_at_false_alarm(c, alpha)
         out[d] = {"auc": auc(c), "threshold": t, "false_alarm": fa, "attack_reject": pd}
     c = roc_curve(kofn_votes(b_te.valid), kofn_votes(a_te.valid), "<=")
@@ -188,5 +198,5 @@ def _test_comparison(b_te: _Points, a_te: _Points, sb, sa, tau: float, alpha: fl
     out["NPFusion"] = {"auc": auc(roc_curve(sb, sa, "<=")), "threshold": tau,
                        "false_alarm": float((sb > tau).mean()),
                        "attack_reject": float((sa > tau).mean())}
-    out["best_single"] = max(DETECTORS, key=lambda d: (out[d]["attack_reject"], out[d]["auc"]))
+    out["best_single"] = max(dets, key=lambda d: (out[d]["attack_reject"], out[d]["auc"]))
     return out

@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from ..fileio import atomic_output, naming
-from ..detectors.outcomes import DETECTORS, OUTCOMES, PointRow
-from ..detectors.statistics import STAT_COLUMNS
+from ..detectors.outcomes import DETECTORS, OUTCOMES, TRP_DETECTORS, PointRow
+from ..detectors.statistics import STAT_COLUMNS, TRP_STAT_COLUMNS
 from ..errors import short_repr
 
-__all__ = ["CSV_COLUMNS", "TRP_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
-           "parse_rows", "scenario_metrics", "results_path", "links_path"]
+__all__ = ["CSV_COLUMNS", "TRP_COLUMNS", "TRP_DETECTOR_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
+           "parse_rows", "detectors_of", "scenario_metrics", "results_path", "links_path"]
 
 CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
                "index", "attack", "x_est_enc", "y_est_enc", "error_m_enc", "outcome_enc",
@@ -45,10 +45,13 @@ CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_
 #: each row (a three-TRP run with the paper's fit keeps the paper's columns)
 TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded", "fix_cov_xx", "fix_cov_xy", "fix_cov_yy",
                "auth_share", "x_est_auth", "y_est_auth")
+#: the :data:`~veriloc_rt.detectors.outcomes.TRP_DETECTORS`' verdicts and statistics, after
+#: :data:`TRP_COLUMNS` in the same runs
+TRP_DETECTOR_COLUMNS = (*TRP_DETECTORS, *TRP_STAT_COLUMNS)
 #: columns of ``<scenario>_links.csv``: one row per point and TRP
 LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
                 "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
-                "excluded")
+                "excluded", "peak_snr_db")
 
 
 def results_path(out_dir: str | Path, scenario: str) -> Path:
@@ -94,20 +97,24 @@ def _trp_fields(r: PointRow) -> list[str]:
     c = r.fix_cov
     cov = [_f(c[0, 0]), _f(c[0, 1]), _f(c[1, 1])] if c is not None else ["", "", ""]
     share, xy = r.auth if r.auth is not None else (None, (None, None))
-    return [str(heard), str(used), str(excluded)] + cov + [_f(share), _f(xy[0]), _f(xy[1])]
+    return ([str(heard), str(used), str(excluded)] + cov + [_f(share), _f(xy[0]), _f(xy[1])]
+            + [str(int(bool(r.verdicts[d]))) if d in r.verdicts else "" for d in TRP_DETECTORS]
+            + [_f(r.stats.get(d)) for d in TRP_DETECTORS])
 
 
 def fields_to_row(f: dict) -> PointRow:
     enc = f["outcome_enc"] != ""
     return PointRow(
         index=int(f["index"]), time_s=float(f["Time"]), attack=f["attack"] == "1",
-        verdicts={d: f[d] == "1" for d in DETECTORS},
+        verdicts={d: f[d] == "1" for d in DETECTORS + TRP_DETECTORS if f.get(d, "") != ""},
         true_xy=np.array([_p(f["x_true"]), _p(f["y_true"])]),
         est_xy=np.array([_p(f["x_est"]), _p(f["y_est"])]), error_m=_p(f["error_m"]),
         outcome=f["outcome"],
         est_xy_enc=np.array([_p(f["x_est_enc"]), _p(f["y_est_enc"])]) if enc else None,
         error_m_enc=_p(f["error_m_enc"]) if enc else None, outcome_enc=f["outcome_enc"] or None,
-        stats={d: _p(f[c]) for d, c in zip(DETECTORS, STAT_COLUMNS) if f[c] != ""},
+        stats={d: _p(f[c]) for d, c in zip(DETECTORS + TRP_DETECTORS,
+                                            STAT_COLUMNS + TRP_STAT_COLUMNS)
+               if f.get(c, "") != ""},
         trps=((int(f["bs_heard"]), int(f["bs_used"]), f["bs_excluded"])
               if f.get("bs_heard", "") != "" else None),
         fix_cov=(np.array([[_p(f["fix_cov_xx"]), _p(f["fix_cov_xy"])],
@@ -134,7 +141,9 @@ def parse_rows(text: str, path: str | Path = "results CSV") -> list[PointRow]:
         text = text[: text.rfind("\n") + 1]
     reader = csv.DictReader(io.StringIO(text, newline=""))
     try:
-        if tuple(reader.fieldnames or ()) not in (CSV_COLUMNS, CSV_COLUMNS + TRP_COLUMNS):
+        if tuple(reader.fieldnames or ()) not in (
+                CSV_COLUMNS, CSV_COLUMNS + TRP_COLUMNS,
+                CSV_COLUMNS + TRP_COLUMNS + TRP_DETECTOR_COLUMNS):
             raise ValueError(f"header {short_repr(reader.fieldnames)} is not the results "
                              "CSV's")
         rows = []
@@ -171,7 +180,8 @@ class ResultsWriter:
 
     :param keep: rows already on disk to keep (resume); the file is rewritten with exactly these
         first, which also drops a torn last line (the links file keeps these points' lines)
-    :param trps: append :data:`TRP_COLUMNS` to every row (runs with more than three TRPs)
+    :param trps: append :data:`TRP_COLUMNS` and :data:`TRP_DETECTOR_COLUMNS` to every row
+        (runs with more than three TRPs)
     """
 
     def __init__(self, path: str | Path, keep: list[PointRow] | None = None, trps: bool = False):
@@ -182,7 +192,7 @@ class ResultsWriter:
         old_links = _kept_lines(self.links_path, {r.index for r in keep or ()})
         with atomic_output(self.path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
-            w.writerow(CSV_COLUMNS + (TRP_COLUMNS if self.trps else ()))
+            w.writerow(CSV_COLUMNS + (TRP_COLUMNS + TRP_DETECTOR_COLUMNS if self.trps else ()))
             for r in keep or ():
                 w.writerow(self._fields(r))
         with atomic_output(self.links_path) as tmp, open(tmp, "w", newline="") as fh:
@@ -251,7 +261,8 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
     if all(r.outcome_enc is not None for r in rows):
         out["outcomes_encrypted"] = _outcomes([r.outcome_enc for r in rows], sel)
     rates = {}
-    for d in DETECTORS:
+    names = detectors_of(rows)
+    for d in names:
         valid = np.array([r.verdicts[d] for r in rows])
         rates[d] = _pct(valid, sel & fix) if scenario == "none" else _pct(~valid, sel)
     out["correct_decision_rate"] = rates
@@ -262,5 +273,12 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
     if scenario != "none":  # the benign phases of an attack run (false alarms around the attack)
         ben = ~attack & fix
         out["benign_phase_false_alarm_rate"] = {
-            d: _pct(~np.array([r.verdicts[d] for r in rows]), ben) for d in DETECTORS}
+            d: _pct(~np.array([r.verdicts[d] for r in rows]), ben) for d in names}
     return out
+
+
+def detectors_of(rows: list[PointRow]) -> tuple[str, ...]:
+    """The detectors every row has a verdict of: :data:`DETECTORS`, then the
+    :data:`TRP_DETECTORS` when every row has them (runs with more than three TRPs)."""
+    return DETECTORS + tuple(d for d in TRP_DETECTORS
+                             if rows and all(d in r.verdicts for r in rows))

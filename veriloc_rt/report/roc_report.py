@@ -1,7 +1,8 @@
 """The detection analysis on disk: ``roc.csv``, ``roc.png`` and the text summary of it.
 
 ``roc.csv`` (:data:`~veriloc_rt.report.detection.ROC_COLUMNS`): one row per ROC vertex of each
-decision (the five detectors, ``KofN``, ``NPFusion``) and attack, in the order the curve runs
+decision (the five detectors, then ``Integrity`` and ``AuthShare`` in a run with more than
+three TRPs, ``KofN``, ``NPFusion``) and attack, in the order the curve runs
 from accept-all to reject-all. ``roc.png``: one panel per attack, false-alarm rate
 ``1 - benign_accept`` against detection rate ``attack_reject`` (Fawcett 2006's axes), a curve
 per decision, the configured threshold's operating point marked; the x axis is linear up to
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..detectors.outcomes import DETECTORS
+from ..detectors.outcomes import DETECTORS, TRP_DETECTORS
 from ..fileio import atomic_output
 from .detection import FUSED, ROC_COLUMNS, DetectionAnalysis
 from .plots import figure
@@ -29,7 +30,9 @@ ROC_TITLE = ("ROC per attack (o: configured threshold; AUC in the legend; x line
 #: display label and colour of each decision (the single detectors' as in the other plots)
 LABELS = {"HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DigSig", (0.7, 0.0, 0.0)),
           "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("Handshake", (1.0, 0.6, 0.2)),
-          "Tracking": ("Tracking", (0.3, 0.3, 0.3)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
+          "Tracking": ("Tracking", (0.3, 0.3, 0.3)),
+          "Integrity": ("Integrity", (0.85, 0.1, 0.55)),
+          "AuthShare": ("AuthShare", (0.1, 0.45, 0.95)), "KofN": ("k-of-5 vote", (0.55, 0.2, 0.7)),
           "NPFusion": ("NP fusion (test third)", (0.0, 0.55, 0.0))}
 
 
@@ -60,16 +63,17 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
     m = analysis.metrics
     attacks = list(m["attacks"])
     k = m["fusion"]["k"]
+    singles = [d for d in (*DETECTORS, *TRP_DETECTORS) if d in m["detectors"]]
     path = Path(path)
     with figure(path, title, ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
                 squeeze=False, margins_in=_MARGINS_IN, wspace_in=_WSPACE_IN) as (_, axes):
         for ax, s in zip(axes[0], attacks):
-            for name in (*DETECTORS, *FUSED):
+            for name in (*singles, *FUSED):
                 c = analysis.curves.get((name, s))
                 if c is None:
                     continue
                 label, colour = LABELS[name]
-                label = label.replace("k-of-5", f"{k}-of-5")
+                label = label.replace("k-of-5", f"{k}-of-{len(singles)}")
                 ls = "--" if name in analysis.uninformative else "-"
                 ax.plot(c.false_alarm, c.attack_reject, ls, color=colour, lw=1.4,
                         drawstyle="default",
@@ -97,8 +101,10 @@ def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = 
 def format_detection(roc: dict) -> str:
     """The ``roc`` block of metrics.json as text: AUC and operating point per decision and
     attack, the uninformative detectors, and the fused decisions against the best single one."""
-    names = [n for n in (*DETECTORS, *FUSED) if n in roc["detectors"]]
-    short = {**{d: LABELS[d][0] for d in DETECTORS}, "KofN": f"{roc['fusion']['k']}-of-5",
+    names = [n for n in (*DETECTORS, *TRP_DETECTORS, *FUSED) if n in roc["detectors"]]
+    singles = len([n for n in names if n not in FUSED])
+    short = {**{d: LABELS[d][0] for d in (*DETECTORS, *TRP_DETECTORS)},
+             "KofN": f"{roc['fusion']['k']}-of-{singles}",
              "NPFusion": "NP fusion"}
     head = "ROC          " + " ".join(f"{short[n]:>15s}" for n in names)
     lines = [head + "   (AUC  benign-accept/attack-reject % at the configured threshold; "

@@ -47,6 +47,7 @@ import numpy as np
 from ..config import Config
 from ..detectors import KalmanTracker, PointDetectors, point_statistics
 from ..detectors.outcomes import PointRow, outcome_of
+from ..detectors.statistics import auth_share_verdict, integrity_verdict
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..phy.channel import Links
 from ..phy.chain.receiver import reference_trp
@@ -341,6 +342,12 @@ class ScenarioRunner:
         row.fix_cov = cov
         if self.cfg.trp_outputs:
             row.auth = authenticated_fix(res, self.roles["standard"].chain, self.prop.bs_ue, i)
+            extra = {"Integrity": integrity_verdict(res.position,
+                                                    self.cfg.receiver.integrity_false_alarm),
+                     "AuthShare": auth_share_verdict(row.auth[0],
+                                                     self.cfg.detectors.min_auth_share)}
+            row.verdicts.update({d: ok for d, (ok, _) in extra.items()})
+            row.stats.update({d: st for d, (_, st) in extra.items()})
         if "encrypted" in self.roles:
             r2 = self.chain_result("encrypted", scenario, i)
             row.est_xy_enc, row.error_m_enc, row.outcome_enc = self._fix(r2, true_xy)
@@ -385,7 +392,8 @@ def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
     (``channel.prs_power``) over the noise per RE. ToA error: c toa - the 3-D distance (the
     receiver's timing reference is the earliest true arrival less a guard, so its ToAs are
     absolute); RSTD error: ToA error minus the fix reference's (empty for the reference);
-    AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg.
+    AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg;
+    peak SNR: the correlation peak's post-integration SNR the fix weights by (heard TRPs).
 
     :returns: ((bs_heard, bs_used, bs_excluded), [per TRP: LINK_COLUMNS after ``index``])
     """
@@ -408,5 +416,7 @@ def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
     excluded = tuple(int(j) for j in fix.excluded)
     links = [(k, int(bs_ue.tx_index[i, k]), float(dist[k]), float(rx_dbm[k]), float(snr_db[k]),
               bool(res.detected[k]), float(toa_err[k]), float(rstd_err[k]), float(aoa_err[k]),
-              bool(res.tags_valid[k]), k in used, k in excluded) for k in range(len(pos))]
+              bool(res.tags_valid[k]), k in used, k in excluded,
+              float(np.asarray(res.peak_snr_db, float)[k]) if res.detected[k] else float("nan"))
+             for k in range(len(pos))]
     return (int(np.sum(res.detected)), len(used), ";".join(map(str, excluded))), links

@@ -38,7 +38,8 @@ from ..security.keys import BSKeys
 from .downlink import Adversary, DownlinkChannel, SignalKey
 from .frames import FrameSignals, FrameSource, ServingSetup
 from .plan import FULL, ChainPlan, ChainResult
-from .receiver import AngleStage, FixStage, TagStage, TimingStage, UplinkStage, zenith_from_fix
+from .receiver import (AngleStage, FixStage, RangeOverbound, TagStage, TimingStage, UplinkStage,
+                       zenith_from_fix)
 
 log = logging.getLogger(__name__)
 
@@ -116,7 +117,9 @@ class PositioningChain:
         self.fix = FixStage(receiver.max_residual_m, weighted,
                             nr.num_subcarriers * nr.subcarrier_spacing_hz,
                             receiver.range_std_floor_m, receiver.integrity_false_alarm,
-                            receiver.fault_exclusion)
+                            receiver.fault_exclusion,
+                            overbound=(RangeOverbound.shipped()
+                                       if receiver.range_error_model == "overbound" else None))
         self.angles = AngleStage(AoAEstimator(receiver.aoa_method, receiver.aoa_num_sources or None,
                                               ue_array.spacing_wavelengths, axis),
                                  receiver.aoa_snapshots)

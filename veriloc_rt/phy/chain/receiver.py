@@ -18,6 +18,8 @@ Each is configured once and called per point on the previous stages' typed resul
 
 from __future__ import annotations
 
+import json
+from importlib import resources
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -36,8 +38,9 @@ from ..receiver.toa import CrossSpectra, ToAEstimate, ToAEstimator
 from ..receiver.uplink import UplinkPositioner, UplinkResult
 from .downlink import KeptDraw, Received
 
-__all__ = ["AngleStage", "Angles", "FixStage", "TagStage", "Timing", "TimingStage", "UplinkKey",
-           "UplinkStage", "zenith_from_fix"]
+__all__ = ["AngleStage", "Angles", "FixStage", "RangeOverbound", "TagStage", "Timing",
+           "TimingStage", "UplinkKey", "UplinkStage", "OVERBOUND_TAIL_MAX", "gaussian_overbound",
+           "zenith_from_fix"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,10 +140,15 @@ class FixStage:
         chi-square integrity test (``receiver.fix_weighting``); False: the unweighted fit
     :param bandwidth_hz: Hz, the PRS bandwidth (the CRLB's); floor_m: m, the std floor
     :param false_alarm: the integrity test's size; exclusion: fault exclusion on
+    :param overbound: optional :class:`RangeOverbound`: each ToA's std is the larger of
+        :func:`range_std`'s and the overbound of its peak-SNR bin
+        (``receiver.range_error_model`` 'overbound')
     """
 
     def __init__(self, max_residual_m: float, weighted: bool = False, bandwidth_hz: float = 0.0,
-                 floor_m: float = 0.0, false_alarm: float = 0.01, exclusion: bool = True):
+                 floor_m: float = 0.0, false_alarm: float = 0.01, exclusion: bool = True,
+                 overbound: "RangeOverbound | None" = None):
+        self.overbound = overbound
         self.max_residual_m = float(max_residual_m)
         self.weighted, self.bandwidth_hz, self.floor_m = bool(weighted), float(bandwidth_hz), float(floor_m)
         self.false_alarm, self.exclusion = float(false_alarm), bool(exclusion)
@@ -168,7 +176,77 @@ class FixStage:
         solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=1e9,
                                 false_alarm=self.false_alarm, exclusion=self.exclusion)
         sig = range_std(snr, self.bandwidth_hz, self.floor_m)
+        if self.overbound is not None:
+            sig = np.maximum(sig, self.overbound.sigma(snr))
         return solver(bs_pos, np.where(det, rstd, np.nan), ref, det, range_std_m=sig)
+
+
+class RangeOverbound:
+    """A zero-mean Gaussian overbound of the ToA range error per peak-SNR bin (the overbounding
+    of GNSS integrity, e.g. ARAIM: a Gaussian whose tails are at least as heavy as the measured
+    error distribution's), read from a calibration table made by
+    ``scripts/calibrate_range_overbound.py`` from benign runs of this simulator.
+
+    The table (JSON): ``snr_edges_db`` [num_bins + 1] ascending, ``sigma_m`` [num_bins], plus
+    the description of what it was calibrated on. A peak SNR below the first edge takes the
+    first bin's sigma, above the last the last bin's (the table says nothing beyond its data).
+
+    :param edges_db: [num_bins + 1] float64, dB; sigma_m: [num_bins] float64, m
+    """
+
+    #: the shipped table, in the package's data folder
+    SHIPPED = "range_overbound.json"
+
+    def __init__(self, edges_db, sigma_m):
+        self.edges_db = np.asarray(edges_db, dtype=float)
+        self.sigma_m = np.asarray(sigma_m, dtype=float)
+        if (self.edges_db.ndim != 1 or self.sigma_m.shape != (self.edges_db.size - 1,)
+                or self.sigma_m.size < 1 or np.any(np.diff(self.edges_db) <= 0)
+                or not np.all(np.isfinite(self.sigma_m) & (self.sigma_m > 0))):
+            raise ValueError("Arguments `edges_db` (ascending, num_bins + 1) and `sigma_m` "
+                             "(num_bins, finite, > 0) do not make a table")
+
+    @classmethod
+    def from_json(cls, text: str) -> "RangeOverbound":
+        d = json.loads(text)
+        return cls(d["snr_edges_db"], d["sigma_m"])
+
+    @classmethod
+    def shipped(cls) -> "RangeOverbound":
+        """The table shipped with the package (``veriloc_rt/data/range_overbound.json``)."""
+        return cls.from_json(resources.files("veriloc_rt").joinpath(
+            "data", cls.SHIPPED).read_text())
+
+    def sigma(self, peak_snr_db) -> np.ndarray:
+        """[num_bs] float64, m: the overbound sigma of each ToA's peak-SNR bin (non-finite SNR:
+        the first bin)."""
+        snr = np.asarray(peak_snr_db, dtype=float)
+        snr = np.where(np.isfinite(snr), snr, -np.inf)
+        b = np.clip(np.searchsorted(self.edges_db, snr, side="right") - 1, 0,
+                    self.sigma_m.size - 1)
+        return self.sigma_m[b]
+
+
+#: the overbound checks the tails only: empirical tail probabilities up to this (near the
+#: median z(1 - q) -> 0 and the ratio y / z is the sampling noise of the median over ~0)
+OVERBOUND_TAIL_MAX = 0.1
+
+
+def gaussian_overbound(y, p_min: float, q_max: float = OVERBOUND_TAIL_MAX) -> float:
+    """Smallest sigma of a zero-mean Gaussian with at least the empirical tail probability of
+    the sample ``y`` in both tails: for each y_k > 0 with empirical P(Y >= y_k) = q in
+    [p_min, q_max], sigma >= y_k / z(1 - q) (z the standard normal quantile), and the same for
+    -y (the left tail). 0 for a sample with no such point. y : [n] float64."""
+    from scipy.stats import norm
+
+    y = np.asarray(y, dtype=float)
+    out = 0.0
+    for side in (np.sort(y)[::-1], np.sort(-y)[::-1]):     # right tail, then the left one
+        q = np.arange(1, y.size + 1) / y.size              # P(Y >= y_k), k-th largest
+        keep = (side > 0) & (q >= p_min) & (q <= q_max)
+        if keep.any():
+            out = max(out, float(np.max(side[keep] / norm.isf(q[keep]))))
+    return out
 
 
 def range_std(peak_snr_db: np.ndarray, bandwidth_hz: float, floor_m: float) -> np.ndarray:

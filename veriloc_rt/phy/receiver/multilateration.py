@@ -87,6 +87,10 @@ class MultilaterationResult:
     excluded: tuple = ()
     #: indices (into the call's ``bs_pos``) of the anchors the fix used
     used: tuple = ()
+    #: the weighted fit's first integrity test, before any exclusion: its chi-square statistic
+    #: and degrees of freedom (0, 0: no test made, e.g. the unweighted fit)
+    test_chi2: float = 0.0
+    test_dof: int = 0
 
     @property
     def ambiguous(self) -> bool:
@@ -343,8 +347,11 @@ class Multilaterator:
         failure naming the statistic.
         """
         excluded: list[int] = []
+        first = None
         while True:
             res = self._weighted(bs, rd, sig, used, ref)
+            if first is None:
+                first = (float(res.chi2), int(res.dof))
             thr = chdtri(res.dof, self.false_alarm) if res.dof > 0 else np.inf
             fails = res.dof > 0 and res.chi2 > thr and res.status != STATUS_NO_CONVERGENCE
             if not fails or not self.exclusion or res.dof < 2:
@@ -363,7 +370,8 @@ class Multilaterator:
             _, j, ref = best
             used = [i for i in used if i != j]
             excluded.append(j)
-        res = replace(res, excluded=tuple(excluded), used=tuple(used))
+        res = replace(res, excluded=tuple(excluded), used=tuple(used), test_chi2=first[0],
+                      test_dof=first[1])
         if res.ok and fails:
             return replace(res, ok=False, status=STATUS_RESIDUAL,
                            reason=f"chi-square {res.chi2:.1f} > {thr:.1f} (dof {res.dof}, "
