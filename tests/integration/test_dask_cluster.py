@@ -138,14 +138,14 @@ def test_real_cluster_gives_the_serial_files(serial, cluster):
     for proc in refs:
         _finish(proc)
     files = assert_same_run_files(where / "mc_serial", where / "mc_dask")
-    # the Monte Carlo's lock, 3 JSON/CSV files and 2 plots; per realisation its lock, 6
-    # JSON/CSV files (roc.csv among them), chains.bin, 8 plots (roc.png) and 3 scene files
-    # (XML, 2 PLY)
-    assert files == 6 + REALISATIONS * 19
+    # the Monte Carlo's lock, 3 JSON/CSV files and 2 plots; per realisation its lock, 8
+    # JSON/CSV files (roc.csv and the two scenarios' links CSVs among them), chains.bin, 8 plots
+    # (roc.png) and 3 scene files (XML, 2 PLY)
+    assert files == 6 + REALISATIONS * 21
     timing = json.loads((where / "mc_dask" / "metrics.json").read_text())["resources"]
     assert timing["scheduler"] == address and timing["workers"] == 2
 
-    assert assert_same_run_files(where / "one_serial", where / "one_dask") == 19
+    assert assert_same_run_files(where / "one_serial", where / "one_dask") == 21
     timing = json.loads((where / "one_dask" / "metrics.json").read_text())["resources"]
     assert timing["scheduler"] == address and timing["workers"] == 2
     # the workers wrote nothing where they run: every file went to the client's --out
