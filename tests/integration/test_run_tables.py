@@ -57,7 +57,12 @@ def test_load_run_matches_the_files(run_dir):
         np.testing.assert_array_equal(mine["error_m"].to_numpy(), err)
     assert len(t.points) == 32 * len(scenarios)
     assert len(t.roc) == len(_csv(run_dir / "roc.csv"))
-    assert t.links.empty   # this run writes no per-TRP links file
+    # every scenario's per-TRP links file, row for row (3 TRPs a point here)
+    for s in scenarios:
+        links = _csv(run_dir / f"{s}_links.csv")
+        mine = t.links[t.links["scenario"] == s]
+        assert len(mine) == len(links) == 32 * 3
+        np.testing.assert_array_equal(mine["index"].to_numpy(), [int(r["index"]) for r in links])
     # every scenario share, with its unit, equals metrics.json's
     sm = t.scenario_metrics
     for s in scenarios:
