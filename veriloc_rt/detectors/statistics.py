@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scipy.stats import chi2
 
 from ..config.detectors import DetectorsConfig
 from .outcomes import DETECTORS, TRP_DETECTORS
@@ -111,6 +110,10 @@ def integrity_verdict(fix, false_alarm: float) -> tuple[bool, float]:
         return False, float("inf")
     if fix.test_dof <= 0:
         return True, 0.0
+    # imported here: scipy.stats is a chain-only package (a resume that computes no chain
+    # does not load it; tests/unit/test_lazy_imports.py)
+    from scipy.stats import chi2
+
     stat = float(-chi2.logsf(fix.test_chi2, fix.test_dof) / np.log(10.0))
     stat = max(stat, 0.0)       # logsf(0) is -0.0 up to rounding
     return bool(accepts(stat, -np.log10(false_alarm), ACCEPT_AT_MOST)), stat

@@ -198,7 +198,9 @@ def scene_layer(cfg) -> dict:
     """
     from ...world.geometry import build_geometry
 
-    with tempfile.TemporaryDirectory(prefix="veriloc-live-") as tmp:
+    # built in a daemon thread: a server stopped mid-build exits while the thread still writes
+    # here, and the folder's removal at exit must not print a traceback for files it races
+    with tempfile.TemporaryDirectory(prefix="veriloc-live-", ignore_cleanup_errors=True) as tmp:
         geo = build_geometry(cfg, tmp)
     r = lambda a: np.round(np.asarray(a, dtype=float) / COORD_STEP_M) * COORD_STEP_M  # noqa: E731
     out: dict = {"ready": True}
