@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from .lsp_checks import assert_clipped_normal, ring
 from veriloc_rt.propagation.cir import ula_element_positions
 from veriloc_rt.propagation.uma import uma_cir
 from veriloc_rt.propagation.uma_lsp import draw_link_parameters
@@ -28,35 +29,17 @@ KS_CRIT_LSP = 1.949 / np.sqrt(N_LSP)
 TOL_XCORR = 0.03
 
 
-def _ring(n, rng, r_min=35.0, r_max=500.0):
-    r = rng.uniform(r_min, r_max, n)
-    a = rng.uniform(0, 2 * np.pi, n)
-    return np.stack([r * np.cos(a), r * np.sin(a), np.full(n, 1.5)], axis=-1)
-
 
 @pytest.fixture(scope="module", params=[True, False], ids=["los", "nlos"])
 def lsp_draws(request):
     los = request.param
     rng = np.random.default_rng(2024)
-    rx = _ring(N_LSP, rng)
+    rx = ring(N_LSP, rng, 35.0, 500.0)
     tx = np.tile([0.0, 0.0, 25.0], (N_LSP, 1, 1))
     par = draw_link_parameters(tx, rx, np.zeros((N_LSP, 1), int), FC, rng,
                                spatial_consistency=False, los_state=np.full((N_LSP, 1), los))
     return los, par
 
-
-def _assert_clipped_normal(name, x, mu, sd, clip):
-    """x ~ min(N(mu, sd), clip): KS on the unclipped values against the truncated normal, and the
-    clipped fraction against 1 - Phi within 4 binomial standard deviations (the atom at the clip
-    would otherwise dominate the KS distance)."""
-    mu, sd = np.broadcast_to(mu, x.shape), np.broadcast_to(sd, x.shape)
-    p_clip = stats.norm.sf(clip, mu, sd)
-    at = x >= clip - 1e-12
-    expect = p_clip.sum()   # clipped count: 4 Poisson sd, at least 3 counts for tiny expectations
-    assert abs(at.sum() - expect) < max(4 * np.sqrt(expect), 3), name
-    u = stats.norm.cdf(x[~at], mu[~at], sd[~at]) / (1 - p_clip[~at])   # PIT of the truncated law
-    d = stats.kstest(u, "uniform").statistic
-    assert d < 1.949 / np.sqrt(u.size), f"{name}: KS D = {d:.4f}"
 
 
 def test_lsp_draws_ks_against_table_7_5_6(lsp_draws):
@@ -70,13 +53,13 @@ def test_lsp_draws_ks_against_table_7_5_6(lsp_draws):
     if los:
         checks.append(("K", par.k_db[:, 0], 1, np.inf))
     for name, x, i, c in checks:
-        _assert_clipped_normal(name, x, mu[0, i], sd[0, i], c)
+        assert_clipped_normal(name, x, mu[0, i], sd[0, i], c)
 
 
 def test_zsd_draws_ks_given_distance(lsp_draws):
     los, par = lsp_draws
     mu, sd = lsp_statistics(los, FC, par.d_2d[:, 0], 1.5)
-    _assert_clipped_normal("ZSD", np.log10(par.zsd[:, 0]), mu[:, 5], sd[:, 5], np.log10(52.0))
+    assert_clipped_normal("ZSD", np.log10(par.zsd[:, 0]), mu[:, 5], sd[:, 5], np.log10(52.0))
 
 
 def test_lsp_cross_correlation_matches_table(lsp_draws):
@@ -134,7 +117,7 @@ def realised(request):
     los = request.param
     n = 2000
     rng = np.random.default_rng(77)
-    rx = _ring(n, rng)
+    rx = ring(n, rng, 35.0, 500.0)
     tx = np.tile([0.0, 0.0, 25.0], (n, 1, 1))
     cir, par = uma_cir(tx, rx, np.zeros((n, 3)), np.zeros((n, 1, 3)), np.zeros((n, 1), int), FC,
                        ula_element_positions(1, 0.04, 0.0), rng, spatial_consistency=False,

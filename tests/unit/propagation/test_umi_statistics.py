@@ -16,8 +16,8 @@ check that the UMi table is what drives them:
 
 import numpy as np
 import pytest
-from scipy import stats
 
+from .lsp_checks import assert_clipped_normal, ring
 from veriloc_rt.propagation import tr38901
 from veriloc_rt.propagation.cir import ula_element_positions
 from veriloc_rt.propagation.uma import uma_cir
@@ -43,35 +43,18 @@ NS3_NLOS = np.array([
     [0, 0, 0.5, 0.221981, -0.566238, 0.616522]])
 
 
-def _ring(n, rng, r_min=10.0, r_max=300.0):
-    r = rng.uniform(r_min, r_max, n)
-    a = rng.uniform(0, 2 * np.pi, n)
-    return np.stack([r * np.cos(a), r * np.sin(a), np.full(n, 1.5)], axis=-1)
-
 
 @pytest.fixture(scope="module", params=[True, False], ids=["los", "nlos"])
 def lsp_draws(request):
     los = request.param
     rng = np.random.default_rng(2024)
-    rx = _ring(N_LSP, rng)
+    rx = ring(N_LSP, rng, 10.0, 300.0)
     tx = np.tile([0.0, 0.0, H_BS], (N_LSP, 1, 1))
     par = draw_link_parameters(tx, rx, np.zeros((N_LSP, 1), int), FC, rng,
                                spatial_consistency=False, los_state=np.full((N_LSP, 1), los),
                                scenario="umi")
     return los, par
 
-
-def _ks_clipped_normal(name, x, mu, sd, clip):
-    """x ~ min(N(mu, sd), clip): clipped count within 4 Poisson sd, KS of the rest against the
-    truncated normal at the alpha = 0.001 critical value 1.949 / sqrt(n)."""
-    mu, sd = np.broadcast_to(mu, x.shape), np.broadcast_to(sd, x.shape)
-    p_clip = stats.norm.sf(clip, mu, sd)
-    at = x >= clip - 1e-12
-    expect = p_clip.sum()
-    assert abs(at.sum() - expect) < max(4 * np.sqrt(expect), 3), name
-    u = stats.norm.cdf(x[~at], mu[~at], sd[~at]) / (1 - p_clip[~at])
-    d = stats.kstest(u, "uniform").statistic
-    assert d < 1.949 / np.sqrt(u.size), f"{name}: KS D = {d:.4f}"
 
 
 def test_lsp_draws_ks_against_umi_table(lsp_draws):
@@ -86,7 +69,7 @@ def test_lsp_draws_ks_against_umi_table(lsp_draws):
     if los:
         checks.append(("K", par.k_db[:, 0], 1, np.inf))
     for name, x, i, c in checks:
-        _ks_clipped_normal(name, x, mu[:, i], sd[:, i], c)
+        assert_clipped_normal(name, x, mu[:, i], sd[:, i], c)
     # the table's numbers, by hand at 3.5 GHz (lg(1 + 3.5) = 0.65321): LoS lg DS mean
     # -7.14 - 0.24 x 0.65321 = -7.2968 (50 ns), NLoS sd 0.28 + 0.16 x 0.65321 = 0.38451
     if los:
@@ -172,7 +155,7 @@ def test_spatial_consistency_follows_umi_decorrelation_distances():
 def test_umi_cir_clusters_and_meta():
     n = 400
     rng = np.random.default_rng(3)
-    rx = _ring(n, rng)
+    rx = ring(n, rng, 10.0, 300.0)
     tx = np.tile([0.0, 0.0, H_BS], (n, 1, 1))
     for los, clusters in ((True, 12), (False, 19)):
         cir, par = umi_cir(tx, rx, np.zeros((n, 3)), np.zeros((n, 1, 3)), np.zeros((n, 1), int),
@@ -193,7 +176,7 @@ def test_umi_cir_clusters_and_meta():
 def test_uma_draws_do_not_depend_on_the_new_parameter():
     """scenario='uma' explicitly and by default give the same numbers from the same stream."""
     n = 200
-    rx = _ring(n, np.random.default_rng(1), 35.0, 500.0)
+    rx = ring(n, np.random.default_rng(1), 35.0, 500.0)
     tx = np.tile([0.0, 0.0, 25.0], (n, 1, 1))
     args = (tx, rx, np.zeros((n, 3)), np.zeros((n, 1, 3)), np.zeros((n, 1), int), FC,
             ula_element_positions(2, 0.04, 0.0))
