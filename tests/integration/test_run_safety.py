@@ -25,6 +25,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 import pytest
 
@@ -86,12 +87,36 @@ def rows(path: Path) -> int:
     return max(0, len(path.read_bytes().splitlines()) - 1) if path.exists() else 0
 
 
-def wait_rows(p: subprocess.Popen, csv: Path, n: int, timeout: float = RUN_S) -> None:
+def wait_rows(p: subprocess.Popen, csv: Path | Callable[[], int], n: int,
+              timeout: float = RUN_S) -> None:
+    """Wait until ``csv`` (a results CSV, or a function counting rows) holds ``n`` rows while
+    ``p`` runs."""
+    count = csv if callable(csv) else (lambda: rows(csv))
     deadline = time.monotonic() + timeout
-    while rows(csv) < n:
+    while count() < n:
         assert p.poll() is None, p.communicate()[1]
         assert time.monotonic() < deadline
         time.sleep(0.05)
+
+
+def sigterm_after(p: subprocess.Popen, csv: Path | Callable[[], int], n: int,
+                  progress: tuple[str, ...]) -> str:
+    """SIGTERM ``p`` once ``n`` rows exist (:func:`wait_rows`); check it exits with 128 + 15
+    and prints exactly the stop message besides its progress lines (those starting with
+    ``progress``); return its stderr."""
+    try:
+        wait_rows(p, csv, n)
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=QUICK_S)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    assert p.returncode == 128 + signal.SIGTERM, err
+    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()
+             and not ln.startswith(progress)]
+    assert lines == [MESSAGE]
+    return err
 
 
 @pytest.fixture(scope="module")
@@ -175,18 +200,7 @@ def test_sigterm_stops_a_run_like_ctrl_c_and_resume_gives_the_same_bytes(tmp_pat
     cfg, full = made["longer"]
     out = tmp_path / "o"
     p = start("run", cfg, "--out", out, "--workers", "2", cwd=tmp_path)
-    try:
-        wait_rows(p, out / "none_results.csv", 3)
-        p.send_signal(signal.SIGTERM)
-        _, err = p.communicate(timeout=QUICK_S)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.communicate()
-    assert p.returncode == 128 + signal.SIGTERM, err
-    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()
-             and not ln.startswith("none ")]
-    assert lines == [MESSAGE]
+    err = sigterm_after(p, out / "none_results.csv", 3, ("none ",))
     assert "Traceback" not in err
     info = json.loads((out / "run.json").read_text())
     assert info["status"] == "stopped"
@@ -466,22 +480,8 @@ def test_sigterm_stops_a_monte_carlo_on_a_local_cluster_quietly_and_resumably(tm
     assert r.returncode == 0, r.stderr
     out = tmp_path / "o"
     p = start("run", cfg, "--out", out, "--workers", "2", cwd=tmp_path)
-    try:
-        deadline = time.monotonic() + RUN_S
-        while sum(rows(f) for f in out.glob("realisation_*/none_results.csv")) < 3:
-            assert p.poll() is None, p.communicate()[1]
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
-        p.send_signal(signal.SIGTERM)
-        _, err = p.communicate(timeout=QUICK_S)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.communicate()
-    assert p.returncode == 128 + signal.SIGTERM, err
-    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()
-             and not ln.startswith(("Monte Carlo", "realisations"))]
-    assert lines == [MESSAGE]
+    sigterm_after(p, lambda: sum(rows(f) for f in out.glob("realisation_*/none_results.csv")), 3,
+                  ("Monte Carlo", "realisations"))
     assert json.loads((out / "run.json").read_text())["status"] == "stopped"
     assert not (out / OWNER_FILE).exists()
     r = veriloc("run", cfg, "--out", out, "--workers", "2", "--resume", cwd=tmp_path)
