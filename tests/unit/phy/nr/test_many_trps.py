@@ -6,6 +6,7 @@ without tags, one group)."""
 import numpy as np
 import pytest
 
+from .nr_oracles import gold_reference
 from veriloc_rt.config import config_from_dict
 from veriloc_rt.phy.nr.prs import SYMBOLS_PER_SLOT
 from veriloc_rt.phy.security.keys import simulated_keys
@@ -16,23 +17,12 @@ from veriloc_rt.phy.transmitter import PRSTransmitter
 K_PRIME = {6: [0, 3, 1, 4, 2, 5] * 2, 12: [0, 6, 3, 9, 1, 7, 4, 10, 2, 8, 5, 11]}
 
 
-def gold(c_init: int, length: int) -> np.ndarray:
-    """TS 38.211 5.2.1, bit by bit."""
-    nc = 1600
-    x1 = [1] + [0] * 30
-    x2 = [(c_init >> i) & 1 for i in range(31)]
-    for n in range(nc + length):
-        x1.append((x1[n + 3] + x1[n]) % 2)
-        x2.append((x2[n + 3] + x2[n + 2] + x2[n + 1] + x2[n]) % 2)
-    return np.array([(x1[n + nc] + x2[n + nc]) % 2 for n in range(length)])
-
-
 def expected_prs(n_id, k_offset, comb, slot, l, k_count) -> dict[int, complex]:
     """RE k -> r(m) of one PRS symbol: c_init of 7.4.1.7.2, QPSK of 5.1.3, k of 7.4.1.7.3."""
     c_init = (2**22 * (n_id // 1024) + 2**10 * (14 * slot + l + 1) * (2 * (n_id % 1024) + 1)
               + n_id % 1024) % 2**31
     n = k_count // comb
-    c = gold(c_init, 2 * n)
+    c = np.array(gold_reference(c_init, 2 * n))
     r = ((1 - 2 * c[0::2]) + 1j * (1 - 2 * c[1::2])) / np.sqrt(2)
     return {m * comb + (k_offset + K_PRIME[comb][l]) % comb: r[m] for m in range(n)}
 
