@@ -422,8 +422,8 @@ class _MapFigure(_KeptFigure):
 
     def clean_axes(self):
         """The axes without the previous map's lines and legend."""
-        for line in list(self.ax.lines):
-            line.remove()
+        for artist in [*self.ax.lines, *self.ax.collections, *self.ax.patches]:
+            artist.remove()
         if self.ax.get_legend() is not None:
             self.ax.get_legend().remove()
         return self.ax
@@ -482,9 +482,91 @@ def _xy(arr, name: str) -> np.ndarray:
     return a[:, :2]
 
 
-def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
-                        title: str | None = None, margin_m: float = 50.0) -> Path:
-    """Top view: true path, estimates coloured by outcome, BSs (triangles), adversary (orange).
+#: face colour of the buildings under the trajectory map (light: the paths drawn over them stay
+#: legible)
+_BUILDING_COLOUR = "0.82"
+
+
+def map_buildings(geometry) -> np.ndarray:
+    """The buildings of ``geometry``'s scene seen from above, for :func:`plot_trajectory_map`:
+    the procedural canyon's footprints as [num_buildings, 4] float64 rectangles, m (x_min,
+    y_min, x_max, y_max), or a mesh scene's (OpenStreetMap import, Mitsuba XML) building faces
+    projected to the ground as [num_faces, 3, 2] float64 triangles, m, walls (no projected area)
+    left out: the roofs fill the footprints.
+
+    :param geometry: a :class:`~veriloc_rt.world.geometry.Geometry` (its ``scene``)
+    """
+    scene = geometry.scene
+    fp = getattr(scene, "footprints", None)
+    if fp is not None:
+        return np.asarray(fp, dtype=float).reshape(-1, 4)
+    tri = np.asarray(scene.building_triangles, dtype=float).reshape(-1, 3, 3)[:, :, :2]
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+                        - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+    return tri[area > _MIN_FACE_AREA_M2]
+
+
+#: projected area below which a mesh face is a wall seen edge-on (not drawn on the map), m^2
+_MIN_FACE_AREA_M2 = 1e-6
+
+
+def _building_collection(buildings, lo: np.ndarray, hi: np.ndarray):
+    """A matplotlib collection of the ``buildings`` (:func:`map_buildings`) within the view
+    ``lo``..``hi``, or None when there are none there."""
+    from matplotlib.collections import PolyCollection
+
+    b = np.asarray(buildings, dtype=float)
+    if b.size == 0:
+        return None
+    if b.ndim == 2 and b.shape[1] == 4:          # rectangles -> their four corners
+        x0, y0, x1, y1 = b.T
+        b = np.stack([np.stack([x0, y0], -1), np.stack([x1, y0], -1), np.stack([x1, y1], -1),
+                      np.stack([x0, y1], -1)], axis=1)
+    elif not (b.ndim == 3 and b.shape[2] == 2):
+        raise bad_value("buildings", f"array of shape {b.shape}",
+                        "[n, 4] rectangles or [n, k, 2] polygons")
+    seen = np.all((b.max(axis=1) >= lo) & (b.min(axis=1) <= hi), axis=1)
+    if not seen.any():
+        return None
+    return PolyCollection(b[seen], facecolor=_BUILDING_COLOUR, edgecolor=_BUILDING_COLOUR,
+                          linewidths=0.3, zorder=0.5, label="buildings")
+
+
+def new_axes(ax=None, nrows: int = 1, ncols: int = 1, figsize=(8.0, 5.0),
+             squeeze: bool = True, **kw):
+    """``(figure, axes)`` to draw on.
+
+    With ``ax``: one matplotlib ``Axes`` for a one-panel figure, or a sequence of
+    ``nrows * ncols`` of them (any nesting), returned as an array of that grid (squeezed as
+    ``Figure.subplots`` squeezes), and the first one's figure. Without: a new ``Figure``
+    outside pyplot (Agg canvas, constrained layout) with that grid of axes (``kw`` to
+    ``Figure.subplots``).
+
+    :raises InputError: ``ax`` holds another number of Axes than panels
+    """
+    if ax is not None:
+        axes = np.asarray(ax, dtype=object).ravel()
+        if axes.size != nrows * ncols:
+            raise bad_value("ax", f"{axes.size} Axes", f"{nrows * ncols} Axes (one per panel)")
+        grid = axes.reshape(nrows, ncols)
+        return axes[0].figure, (grid.squeeze() if grid.size > 1 else grid[0, 0]) if squeeze \
+            else grid
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=DEFAULT_DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols, squeeze=squeeze, **kw)
+
+
+def plot_trajectory_map(rows: dict, bs_pos, path: str | Path | None = None, adversary_xy=None,
+                        title: str | None = None, margin_m: float = 50.0, buildings=None,
+                        ax=None):
+    """Top view: the buildings (light gray, under everything), true path, estimates coloured
+    by outcome, BSs (triangles), adversary (orange).
 
     The view is the bounding box of the true path, the BSs and the adversary plus ``margin_m``;
     estimates beyond it (spoofed outliers) are drawn on its edge with an "X" marker.
@@ -492,6 +574,11 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     :param bs_pos: [num_bs, 3] or [num_bs, 2] float, m
     :param adversary_xy: [num_points, 2] or [num_points, 3] float, m, optional
     :param margin_m: view margin, m
+    :param buildings: :func:`map_buildings` of the run's geometry ([n, 4] rectangles or
+        [n, k, 2] polygons, m), optional
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused); the Figure is returned.
+        Without ``ax`` and ``path`` a new Figure is returned; with ``path`` the map is saved
+        there and the path returned
     """
     xt, yt, xe, ye, outcome = _columns(rows, ("x_true", "y_true", "x_est", "y_est", "outcome"))
     bs = _xy(bs_pos, "bs_pos")
@@ -502,35 +589,50 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo = (pts.min(axis=0) if len(pts) else np.zeros(2)) - margin_m
     hi = (pts.max(axis=0) if len(pts) else np.zeros(2)) + margin_m
-    has_fix = np.isfinite(est).all(axis=1)
-    inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
+    draw = lambda ax: _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings)  # noqa: E731
+    if ax is not None or path is None:
+        fig, ax = new_axes(ax, figsize=(8.0, 8.0))
+        draw(ax)
+        if title:
+            ax.set_title(title)
+        return fig
     path = Path(path)
     with _kept_figure(("map", bool(title)), lambda: _MapFigure(bool(title))) as kept:
-        ax = kept.clean_axes()
-        ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
-        for o in OUTCOMES[:2]:
-            sel = outcome == o
-            colour = _OUTCOME_COLOURS[o]
-            ax.plot(est[sel & inside, 0], est[sel & inside, 1], ".", color=colour, ms=4,
-                    label=f"estimate: {o.replace('_', ' ')} ({int(np.sum(sel & has_fix))})")
-            out = np.clip(est[sel & has_fix & ~inside], lo, hi)
-            ax.plot(out[:, 0], out[:, 1], "X", color=colour, mec="k", mew=0.5, ms=7)
-        n_out = int(np.sum(has_fix & ~inside))
-        if n_out:
-            ax.plot([], [], "X", color="w", mec="k", ms=7, label=f"beyond view, at edge ({n_out})")
-        if len(adv):
-            ax.plot(adv[:, 0], adv[:, 1], ".", color="tab:orange", ms=3, label="adversary")
-        ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label="BSs")
-        pad = 0.02 * (hi - lo).max()  # keeps the edge markers inside the axes
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (east) [m]")
-        ax.set_ylabel("y (north) [m]")
-        ax.legend(loc="best", fontsize=8, framealpha=0.9)
+        draw(kept.clean_axes())
         kept.save(path, title)
     log.info("wrote %s", path)
     return path
+
+
+def _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings) -> None:
+    """The layers of :func:`plot_trajectory_map` on ``ax``."""
+    has_fix = np.isfinite(est).all(axis=1)
+    inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
+    if buildings is not None:
+        coll = _building_collection(buildings, lo, hi)
+        if coll is not None:
+            ax.add_collection(coll, autolim=False)
+    ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
+    for o in OUTCOMES[:2]:
+        sel = outcome == o
+        colour = _OUTCOME_COLOURS[o]
+        ax.plot(est[sel & inside, 0], est[sel & inside, 1], ".", color=colour, ms=4,
+                label=f"estimate: {o.replace('_', ' ')} ({int(np.sum(sel & has_fix))})")
+        out = np.clip(est[sel & has_fix & ~inside], lo, hi)
+        ax.plot(out[:, 0], out[:, 1], "X", color=colour, mec="k", mew=0.5, ms=7)
+    n_out = int(np.sum(has_fix & ~inside))
+    if n_out:
+        ax.plot([], [], "X", color="w", mec="k", ms=7, label=f"beyond view, at edge ({n_out})")
+    if len(adv):
+        ax.plot(adv[:, 0], adv[:, 1], ".", color="tab:orange", ms=3, label="adversary")
+    ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label="BSs")
+    pad = 0.02 * (hi - lo).max()  # keeps the edge markers inside the axes
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("y (north) [m]")
+    ax.legend(loc="best", fontsize=8, framealpha=0.9)
 
 
 def read_results_csv(path: str | Path) -> dict[str, np.ndarray]:
