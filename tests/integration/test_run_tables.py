@@ -120,7 +120,8 @@ def test_export_bad_input_is_one_line_exit_2(tmp_path, run_dir):
 
 def _bars(ax) -> dict:
     """``{label: [bar heights]}`` of the axes' bar containers."""
-    return {c.get_label(): [p.get_height() for p in c.patches] for c in ax.containers}
+    return {c.get_label(): [p.get_height() for p in c.patches] for c in ax.containers
+            if hasattr(c, "patches")}   # not the error bars' containers
 
 
 def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
