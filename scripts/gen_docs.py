@@ -664,8 +664,8 @@ def outputs_md() -> str:
     out += [f"| `{k}` | {_cell(v)} |" for k, v in TABLES_DOC.items()]
     out += ["", "## Figures in another format: `veriloc-rt plot`", "",
             "`veriloc-rt plot DIR --out FIGS --plot-format png|pdf|svg --dpi N` draws a "
-            "finished run's `outcomes`, `detection_rates`, `roc` and `<scenario>_timeseries` "
-            "again from its files into `FIGS` (default PDF; `--dpi`, default 300, sets the "
+            "finished run's `outcomes`, `detection_rates`, `roc`, `<scenario>_timeseries` and "
+            "`<scenario>_map` (the buildings under the paths) again from its files into `FIGS` (default PDF; `--dpi`, default 300, sets the "
             "resolution of PNG figures; a run writes PNG at 110 dpi). The run's own figures "
             "are never overwritten. In every figure and table a detector flagged "
             "uninformative shows `uninf.` instead of an attack rate, and detectors are named "
