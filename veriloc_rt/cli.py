@@ -362,13 +362,15 @@ def cmd_compare(args) -> int:
 
 
 def cmd_findings(args) -> int:
-    from .studies.findings import PRESETS, generate_findings
+    from .studies.findings import PRESETS, generate_findings, preset_configs
 
     root = Path(args.root)
     configs = None
     if args.config:
         configs = {Path(c).stem: Path(c) for c in args.config}
-    _load(None, args.points, args.seed)   # --points, --seed checked before any work
+    # checked before any work: --points, --seed, the presets' files
+    _load(None, args.points, args.seed)
+    configs = preset_configs(root, args.preset or None, configs)
     workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
     if workers < 1:
         raise InputError("--workers", f"got {workers}, expected an integer >= 1")

@@ -41,7 +41,7 @@ from ..report.results import read_rows, results_path
 log = logging.getLogger(__name__)
 
 __all__ = ["PRESETS", "TARGET_FALSE_ALARM", "model_versions", "config_hash", "detection_table",
-           "parse_stamps", "stale_stamps", "generate_findings", "PresetFindings",
+           "parse_stamps", "stale_stamps", "generate_findings", "preset_configs", "PresetFindings",
            "replace_block"]
 
 #: the presets ``veriloc-rt findings`` runs, in the order docs/findings.md lists them: the
@@ -297,6 +297,26 @@ version, the config and its hash, and the model versions it was computed with;
 """
 
 
+def preset_configs(root: str | Path, presets: tuple | None = None,
+                   configs: dict | None = None) -> dict:
+    """``{name: config path}`` of the runs: ``configs`` as given, or the ``presets`` (default
+    every one of :data:`PRESETS`) under ``root/configs/``.
+
+    :raises InputError: an unknown preset or a missing config file
+    """
+    if configs is None:
+        names = tuple(presets) if presets else PRESETS
+        unknown = [n for n in names if n not in PRESETS]
+        if unknown:
+            raise InputError("--preset", f"unknown preset(s) {', '.join(unknown)}; the presets "
+                             f"are {', '.join(PRESETS)}")
+        configs = {n: Path(root) / CONFIG_DIR / f"{n}.json" for n in names}
+    for name, path in configs.items():
+        if not Path(path).is_file():
+            raise InputError(str(path), f"preset {name!r}: no such config file")
+    return dict(configs)
+
+
 def generate_findings(out: str | Path, docs_dir: str | Path, root: str | Path,
                       presets: tuple | None = None, configs: dict | None = None,
                       points: int | None = None, seed: int | None = None, workers: int = 1,
@@ -313,16 +333,7 @@ def generate_findings(out: str | Path, docs_dir: str | Path, root: str | Path,
         its block
     """
     root, out, docs = Path(root), Path(out), Path(docs_dir)
-    if configs is None:
-        names = tuple(presets) if presets else PRESETS
-        unknown = [n for n in names if n not in PRESETS]
-        if unknown:
-            raise InputError("--preset", f"unknown preset(s) {', '.join(unknown)}; the presets "
-                             f"are {', '.join(PRESETS)}")
-        configs = {n: root / CONFIG_DIR / f"{n}.json" for n in names}
-    for name, path in configs.items():
-        if not Path(path).is_file():
-            raise InputError(str(path), f"preset {name!r}: no such config file")
+    configs = preset_configs(root, presets, configs)
     done = []
     for name, path in configs.items():
         path = Path(path)
