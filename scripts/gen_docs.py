@@ -549,7 +549,9 @@ def outputs_md() -> str:
            "operating point marked, AUC in the legend; uninformative detectors dashed |",
            "| `<scenario>_timeseries.png` | the five verdicts and the position error against "
            "time, attack window shaded |",
-           "| `<scenario>_map.png` | true and estimated path, BSs, the adversary's path |",
+           "| `<scenario>_map.png` | the buildings from above (the canyon's blocks, or a mesh "
+           "scene's roofs: OpenStreetMap, Mitsuba), under the true and estimated path, the BSs "
+           "and the adversary's path |",
            "| `scene_top_view.png` | the scene from above: buildings, BSs, trajectory |",
            "| `scene/` | the scene the run used (`scene.xml`, `meshes/*.ply`) |",
            "| `cir_bs_to_ue.npz`, `cir_bs_to_adversary.npz`, `cir_adversary_to_ue.npz` | with "
@@ -662,13 +664,44 @@ def outputs_md() -> str:
     out += [f"| `{k}` | {_cell(v)} |" for k, v in TABLES_DOC.items()]
     out += ["", "## Figures in another format: `veriloc-rt plot`", "",
             "`veriloc-rt plot DIR --out FIGS --plot-format png|pdf|svg --dpi N` draws a "
-            "finished run's `outcomes`, `detection_rates`, `roc` and `<scenario>_timeseries` "
-            "again from its files into `FIGS` (default PDF; `--dpi`, default 300, sets the "
+            "finished run's `outcomes`, `detection_rates`, `roc`, `<scenario>_timeseries` and "
+            "`<scenario>_map` (the buildings under the paths) again from its files into `FIGS` (default PDF; `--dpi`, default 300, sets the "
             "resolution of PNG figures; a run writes PNG at 110 dpi). The run's own figures "
             "are never overwritten. In every figure and table a detector flagged "
             "uninformative shows `uninf.` instead of an attack rate, and detectors are named "
-            "as in the CSVs. From Python, `veriloc_rt.report.plots.plot_detection_rates("
-            "metrics, None, ax=ax)` draws onto a matplotlib `Axes` and returns its `Figure`."]
+            "as in the CSVs. A rate with a 95 % interval in `metrics.json` (its `<key>_ci95` "
+            "sibling) is drawn with it as an error bar.", "",
+            "From Python, every plotting function of `veriloc_rt.report` takes `ax=` and returns "
+            "the matplotlib `Figure` it drew on (a new one without `ax` and without a path; "
+            "with a path and no `ax` it saves the file, format by its suffix, and returns the "
+            "path), for composing paper figures:", "",
+            "| function | `ax=` |", "| --- | --- |",
+            "| `plots.plot_outcomes(metrics, ax=ax)`, `plots.plot_detection_rates(metrics, "
+            "ax=ax)`, `plots.plot_rates_ci(metrics, ax=ax)` | one `Axes` |",
+            "| `plots.plot_trajectory_map(rows, bs_pos, ax=ax, buildings="
+            "plots.map_buildings(geometry))` | one `Axes` |",
+            "| `plots.plot_time_series(rows, None, window, ax=axes)` | six `Axes`, top to "
+            "bottom: the five detectors, then the position error |",
+            "| `roc_report.plot_roc(analysis, ax=axes)` | one `Axes` per attack |",
+            "| `plots.plot_comparison_detectors(scenarios_by_model, ax=axes)` | one `Axes` per "
+            "evaluated scenario |",
+            "| `plots.plot_comparison_cdfs(benign, ax=axes)` | four `Axes` (2 x 2: position "
+            "error, ToA bias, RSTD error, AoA error) |",
+            "| `plots.plot_pareto(rows, None, y_axis, ax=axes)` | one `Axes` per bench group |",
+            "| `scene_plot.plot_top_view(geometry, ax=ax)`, `osm_plot.plot_osm_top_view(city, "
+            "ax=ax)`, `validation_plot.plot_validation_pathloss(res, None, models, model_db, "
+            "ax=ax)` | one `Axes` |", "",
+            "```python",
+            "from matplotlib.figure import Figure",
+            "from veriloc_rt.report import plots",
+            "import json, pathlib",
+            "metrics = json.loads(pathlib.Path(\"results/metrics.json\").read_text())",
+            "fig = Figure(figsize=(12, 4.5), layout=\"constrained\")",
+            "left, right = fig.subplots(1, 2)",
+            "plots.plot_outcomes(metrics, ax=left)",
+            "plots.plot_detection_rates(metrics, ax=right)",
+            "fig.savefig(\"fig3.pdf\")",
+            "```"]
     out += ["", "## `veriloc-rt scene`, `veriloc-rt keys`", "",
             "`scene` writes `scene.xml` (Mitsuba, loadable by Sionna RT), `meshes/*.ply` and "
             "`scene_top_view.png`. `keys` writes one AES, HMAC and Ed25519 key file per BS; "

@@ -361,6 +361,35 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def cmd_findings(args) -> int:
+    from .studies.findings import PRESETS, generate_findings, preset_configs
+
+    root = Path(args.root)
+    configs = None
+    if args.config:
+        configs = {Path(c).stem: Path(c) for c in args.config}
+    # checked before any work: --points, --seed, the presets' files
+    _load(None, args.points, args.seed)
+    configs = preset_configs(root, args.preset or None, configs)
+    workers = args.workers if args.workers is not None else min(2, os.cpu_count() or 1)
+    if workers < 1:
+        raise InputError("--workers", f"got {workers}, expected an integer >= 1")
+    _out(args.out)
+    docs = Path(args.docs) if args.docs else root / "docs"
+    if not docs.is_dir():
+        raise InputError("--docs", f"{docs} is not a folder")
+    done = generate_findings(args.out, docs, root, presets=args.preset or None, configs=configs,
+                             points=args.points, seed=args.seed, workers=workers,
+                             models=tuple(args.models) if args.models else None,
+                             progress=_bar(args))
+    for p in done:
+        print(f"{p.name}: {', '.join(p.models)} in {p.wall_s:.0f} s")
+    wrote = "findings.md" + (", compare.md's tables" if all(p.compare_md for p in done) else "")
+    print(f"wrote {docs}/ ({wrote}); runs in {args.out}/ (presets: "
+          f"{', '.join(p.name for p in done) or ', '.join(PRESETS)})")
+    return 0
+
+
 def cmd_validate(args) -> int:
     from .studies.validate import format_validation, run_validate
 
@@ -592,6 +621,27 @@ def build_parser() -> argparse.ArgumentParser:
                     "(separates mean loss from multipath structure)")
     _quiet_flag(cp)
     cp.set_defaults(func=cmd_compare)
+    fd = sub.add_parser("findings", help="run the presets on ray tracing and their stochastic "
+                        "twins and regenerate docs/findings.md and docs/compare.md's tables "
+                        "(each stamped with the package, config and model versions)")
+    fd.add_argument("--out", required=True, help="folder for the runs (one sub-folder per preset)")
+    fd.add_argument("--preset", action="append", help="only this preset (repeatable; default: "
+                    "every preset of veriloc_rt.studies.findings.PRESETS)")
+    fd.add_argument("--config", action="append", metavar="FILE", help="this config instead of "
+                    "the presets (repeatable; named by its file name)")
+    fd.add_argument("--points", type=int, help="trajectory points of every preset (default: "
+                    "each preset's own)")
+    fd.add_argument("--seed", type=int, help="override the presets' seed")
+    fd.add_argument("--workers", type=int, help="processes for the per-point chains (default 2)")
+    fd.add_argument("--models", nargs="+", choices=("raytrace", "uma", "umi"), help="only these "
+                    "models, no comparison (compare.md untouched): try the generator without "
+                    "ray tracing")
+    fd.add_argument("--root", default=".", help="the repository checkout (its configs/ and "
+                    "docs/; default: the current folder)")
+    fd.add_argument("--docs", help="write findings.md and compare.md's tables here (default: "
+                    "ROOT/docs)")
+    _quiet_flag(fd)
+    fd.set_defaults(func=cmd_findings)
     b = sub.add_parser("bench", help="sweep the fidelity settings: time vs accuracy table and "
                        "chart with the Pareto front")
     b.add_argument("config", nargs="?", help="JSON config file (default: the built-in default)")
@@ -631,7 +681,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "never inside the run's own files: pick a new name")
     x.set_defaults(func=cmd_export)
     pl = sub.add_parser("plot", help="a finished run's summary figures again (outcomes, "
-                        "detection rates, ROC, time series) in another format and resolution")
+                        "detection rates, ROC, time series, maps) in another format and resolution")
     pl.add_argument("dir", help="the run's --out folder")
     pl.add_argument("--out", required=True, help="output folder (not the run's own)")
     pl.add_argument("--plot-format", choices=("png", "pdf", "svg"), default="pdf",

@@ -450,7 +450,7 @@ def test_points_beyond_the_schema():
     assert_one_line(*run_cli("bench", "--points", 1, "--out", "x")[::2], "--points")
 
 
-@pytest.mark.parametrize("command", ["run", "compare", "validate", "bench"])
+@pytest.mark.parametrize("command", ["run", "compare", "validate", "bench", "findings"])
 def test_huge_points_refused_before_any_work(tmp_path, command):
     # 10**7 points was accepted by a run that then generated the drive for minutes; the maximum
     # (MAX_POINTS) is checked before anything is built, written or traced

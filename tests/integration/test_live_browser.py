@@ -205,3 +205,32 @@ def test_editor_rejects_out_of_range_then_starts_a_run(tmp_path, browser):
         page.close()
     finally:
         _stop(proc)
+
+
+#: the editor's pages without a run: the form and the map's "no run" note come at once, ms
+NO_RUN_WAIT_MS = 10_000
+
+
+def test_editor_without_a_run_shows_the_form_and_says_the_map_has_no_run(tmp_path, browser):
+    proc, url = _start(["edit", "--out", str(tmp_path / "run"), "--port", "0", "--no-browser"],
+                       tmp_path)
+    try:
+        page = browser.new_page()
+        errors = _watch(page)
+        page.goto(url)
+        page.wait_for_selector("body[data-ready='1']", timeout=NO_RUN_WAIT_MS)
+        assert page.input_value("#f-trajectory-num_points") != ""
+        base, token = url.split("/edit?token=")
+        page.goto(f"{base}/?token={token}")
+        page.wait_for_function("() => document.getElementById('map').dataset.state === 'no-run'",
+                               timeout=NO_RUN_WAIT_MS)
+        assert page.text_content("#status") == "waiting"
+        assert page.get_attribute("#map", "data-drawn") == "0"
+        # the note is drawn: some pixels differ from the background
+        img = _pixels(page.locator("#map").screenshot())
+        assert (np.abs(img - BACKGROUND_RGB).max(axis=-1) > DRAWN_MIN_DIFF).any()
+        assert not (tmp_path / "run").exists()
+        assert errors == []
+        page.close()
+    finally:
+        _stop(proc)

@@ -145,6 +145,24 @@ def test_editor_on_a_new_config_file_starts_from_the_default(tmp_path):
     assert not t.is_alive()
 
 
+def test_editor_without_a_run_answers_that_there_is_no_run_map(tmp_path):
+    """``veriloc-rt edit`` before any run: the map's layer says at once that there is no run
+    (the page shows that, instead of "building the map" forever) and builds nothing; the form's
+    routes answer."""
+    server = LiveServer(tmp_path / "out", config_path=tmp_path / "new.json", port=0,
+                        edit=True).start()
+    try:
+        base, token = f"http://127.0.0.1:{server.port}/", server.token
+        layer = json.loads(_get(base + "api/scene", token)[2])
+        assert layer["ready"] is False and layer["run"] is False
+        assert json.loads(_get(base + "api/state", token)[2])["status"] == "waiting"
+        assert any(f["path"] == "trajectory.num_points"
+                   for f in json.loads(_get(base + "api/form", token)[2])["fields"])
+        assert json.loads(_get(base + "api/config", token)[2])["editable"] is True
+    finally:
+        server.shutdown()
+
+
 def test_a_run_the_editor_starts_that_fails_shows_its_error_line(tmp_path, capsys):
     (tmp_path / "taken").write_text("a file, not a folder")
     server = LiveServer(tmp_path / "taken", config_path=tmp_path / "c.json", port=0, edit=True)

@@ -120,7 +120,8 @@ def test_export_bad_input_is_one_line_exit_2(tmp_path, run_dir):
 
 def _bars(ax) -> dict:
     """``{label: [bar heights]}`` of the axes' bar containers."""
-    return {c.get_label(): [p.get_height() for p in c.patches] for c in ax.containers}
+    return {c.get_label(): [p.get_height() for p in c.patches] for c in ax.containers
+            if hasattr(c, "patches")}   # not the error bars' containers
 
 
 def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
@@ -229,8 +230,9 @@ def test_plot_command_redraws_in_the_chosen_format_and_dpi(run_dir, tmp_path):
                      fmt]) == 0
         names = sorted(p.name for p in (tmp_path / fmt).iterdir())
         assert names == sorted([f"outcomes.{fmt}", f"detection_rates.{fmt}", f"roc.{fmt}"]
-                               + [f"{s}_timeseries.{fmt}" for s in
-                                  ("none", "fbs", "meaconing", "jamming")])
+                               + [f"{s}_{kind}.{fmt}" for s in
+                                  ("none", "fbs", "meaconing", "jamming")
+                                  for kind in ("timeseries", "map")])
         assert all((tmp_path / fmt / n).read_bytes().startswith(magic) for n in names)
     assert main(["plot", str(run_dir), "--out", str(run_dir)]) == 2   # never the run's folder
     assert {p.name: p.read_bytes() for p in run_dir.iterdir() if p.is_file()} == before

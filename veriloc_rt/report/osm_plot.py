@@ -6,19 +6,21 @@ from pathlib import Path
 
 import numpy as np
 
-from ..fileio import atomic_output
+from .plots import new_axes, save_figure
 
 #: face colour per ITU material
 COLOURS = {"brick": "tab:brown", "concrete": "0.55", "glass": "tab:cyan", "metal": "tab:blue",
            "wood": "tab:olive"}
 
 
-def plot_osm_top_view(city, path: str | Path, title: str | None = None) -> Path:
-    """Write a PNG of ``city`` (a :class:`~veriloc_rt.world.scene.osm.OsmCity`): footprints
-    (holes left open) coloured by material, streets as lines, the frame's origin as a cross."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def plot_osm_top_view(city, path: str | Path | None = None, title: str | None = None, ax=None):
+    """A top view of ``city`` (a :class:`~veriloc_rt.world.scene.osm.OsmCity`): footprints
+    (holes left open) coloured by material, streets as lines, the frame's origin as a cross.
+
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
+        it is without ``ax`` and ``path``; with ``path`` the figure is saved there (png, pdf or
+        svg by the suffix) and the path returned
+    """
     from matplotlib.collections import LineCollection, PathCollection
     from matplotlib.patches import Patch
     from matplotlib.path import Path as MPath
@@ -28,7 +30,7 @@ def plot_osm_top_view(city, path: str | Path, title: str | None = None) -> Path:
                                                          for r in p.interiors]
         return MPath.make_compound_path(*[MPath(r, closed=True) for r in rings])
 
-    fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
+    fig, ax = new_axes(ax, figsize=(8.0, 8.0))
     if len(city.street_edges):
         seg = city.street_nodes[city.street_edges]
         ax.add_collection(LineCollection(seg, colors="0.75", linewidths=0.8, zorder=1))
@@ -49,7 +51,6 @@ def plot_osm_top_view(city, path: str | Path, title: str | None = None) -> Path:
     lon0, lat0 = city.origin_lonlat_deg
     ax.set_title(title or f"{city.num_buildings} buildings; origin {lat0:.5f} N, {lon0:.5f} E")
     ax.legend(handles=handles, loc="upper right", fontsize=8)
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, format="png", bbox_inches="tight")
-    plt.close(fig)
-    return Path(path)
+    if path is None:
+        return fig
+    return save_figure(fig, path)

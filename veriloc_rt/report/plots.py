@@ -148,69 +148,158 @@ def _value(d: dict, key: str) -> float:
     return float("nan") if v is None else float(v)
 
 
-def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> Path:
+#: the value metrics.json stores for a rate or share of 1 (all of the points): 100.0 while the
+#: scenario rates are percent, 1.0 once they are fractions. The one place the plots take the
+#: unit from (:func:`rate_percent`, :func:`rate_interval`)
+RATE_FULL_SCALE = 100.0
+
+
+def rate_percent(v) -> float:
+    """A rate or share as metrics.json stores it (:data:`RATE_FULL_SCALE`), in percent (what
+    the plots draw); NaN for None."""
+    return float("nan") if v is None else 100.0 * float(v) / RATE_FULL_SCALE
+
+
+def rate_interval(block: dict, key: str, name: str) -> tuple[float, float] | None:
+    """The 95 % interval, percent, of the rate ``block[key][name]`` (e.g. ``key``
+    'correct_decision_rate', ``name`` a detector; ``key`` 'outcomes', ``name`` an outcome), or
+    None when the metrics hold none.
+
+    Read from, in this order: the sibling ``block[key + "_ci95"][name]`` = [lo, hi]; the sibling
+    inside the rate's own dict, ``block[key][name + "_ci95"]`` = [lo, hi]; a Monte Carlo
+    aggregate's ``block["ci95"][key][name]``, a half-width around the mean (clipped to
+    0..100 %: a rate cannot leave it; the t-interval of few realisations can).
+    """
+    def pair(v):
+        if isinstance(v, (list, tuple)) and len(v) == 2 and all(x is not None for x in v):
+            lo, hi = rate_percent(v[0]), rate_percent(v[1])
+            if np.isfinite(lo) and np.isfinite(hi):
+                return min(lo, hi), max(lo, hi)
+        return None
+
+    sib = block.get(f"{key}_ci95")
+    if isinstance(sib, dict) and pair(sib.get(name)) is not None:
+        return pair(sib.get(name))
+    own = block.get(key)
+    if isinstance(own, dict) and pair(own.get(f"{name}_ci95")) is not None:
+        return pair(own.get(f"{name}_ci95"))
+    half = ((block.get("ci95") or {}).get(key) or {}).get(name)
+    mean = rate_percent((own or {}).get(name)) if isinstance(own, dict) else float("nan")
+    if half is None or not np.isfinite(mean):
+        return None
+    h = rate_percent(half)
+    return max(mean - h, 0.0), min(mean + h, 100.0)
+
+
+def _error_bars(ax, x, v, intervals, **kw) -> None:
+    """Error bars at ``x`` from each bar top ``v`` (percent) to its interval (lo, hi), for the
+    bars that have a value and an interval (the others get none)."""
+    ok = [i for i, (vi, ci) in enumerate(zip(v, intervals)) if ci is not None and np.isfinite(vi)]
+    if not ok:
+        return
+    lo = np.array([intervals[i][0] for i in ok])
+    hi = np.array([intervals[i][1] for i in ok])
+    vv = np.asarray(v, dtype=float)[ok]
+    err = np.array([np.maximum(vv - lo, 0.0), np.maximum(hi - vv, 0.0)])
+    ax.errorbar(np.asarray(x, dtype=float)[ok], vv, yerr=err, fmt="none", ecolor="k",
+                capsize=2.0, lw=0.8, **kw)
+
+
+def drawn(path, ax, title, draw, nrows=1, ncols=1, figsize=(8.0, 5.0), **figure_kw):
+    """Run ``draw(fig, axes)`` (``axes`` a [nrows, ncols] array) on the caller's ``ax`` or on a
+    new Figure (both returned as the Figure; ``title`` the one panel's title, or the figure's
+    above several), or, with ``path`` and no ``ax``, on a figure saved to ``path`` (returned).
+    ``figure_kw`` to :func:`figure` (margins) when saving."""
+    if ax is not None or path is None:
+        fig, axes = new_axes(ax, nrows, ncols, figsize=figsize, squeeze=False)
+        draw(fig, axes)
+        if title:
+            if axes.size == 1:
+                axes[0, 0].set_title(title)
+            else:
+                fig.suptitle(title)
+        return fig
+    with figure(path, title, nrows=nrows, ncols=ncols, figsize=figsize, squeeze=False,
+                **figure_kw) as (fig, axes):
+        draw(fig, axes)
+    return Path(path)
+
+
+def plot_rates_ci(metrics: dict, path: str | Path | None = None, title: str | None = None,
+                  ax=None):
     """Grouped bars of the mean correct-decision rate per scenario and detector, with the
-    ``ci95`` intervals as error bars, drawn clipped to 0..100 % (a rate cannot leave it; the
-    t-interval of few realisations can); none below two realisations. A detector a scenario
-    flags uninformative (in any realisation) gets no bar and an "uninf." label."""
+    95 % intervals (:func:`rate_interval`) as error bars; none below two realisations. A
+    detector a scenario flags uninformative (in any realisation) gets no bar and an "uninf."
+    label.
+
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
+        it is without ``ax`` and ``path``; with ``path`` the figure is saved there, the path
+        returned
+    """
     sc = metrics["scenarios"]
     names = [s for s in sc if sc[s].get("correct_decision_rate")]
     width = 0.16
-    path = Path(path)
-    with figure(path, title, figsize=(9.0, 4.5)) as (_, ax):
+
+    def draw(_, axes):
+        ax = axes[0, 0]
         x = np.arange(len(names), dtype=float)
         for k, det in enumerate(DETECTORS):
             xs = x + (k - (len(DETECTORS) - 1) / 2.0) * width
             mean = np.array([np.nan if det in _uninformative(metrics, s)   # no attack bar
-                             else _num(sc[s]["correct_decision_rate"].get(det)) for s in names])
-            half = np.nan_to_num([_num(sc[s]["ci95"].get("correct_decision_rate", {}).get(det))
-                                  for s in names])
-            half[np.isnan(mean)] = 0.0   # no bar, no error bar
-            v = np.nan_to_num(mean)
-            err = np.array([np.minimum(half, v), np.minimum(half, 100.0 - v)])  # [2, scenarios]
+                             else rate_percent(sc[s]["correct_decision_rate"].get(det))
+                             for s in names])
+            ci = [rate_interval(sc[s], "correct_decision_rate", det) for s in names]
             label, colour = _DETECTOR_STYLE[det]
-            ax.bar(xs, v, width, color=colour, label=label, yerr=err, capsize=2.0,
-                   error_kw={"lw": 0.8})
-            for xi, m, top, s in zip(xs, mean, v + err[1], names):
+            ax.bar(xs, np.nan_to_num(mean), width, color=colour, label=label)
+            _error_bars(ax, xs, mean, ci)
+            for xi, m, c, s in zip(xs, mean, ci, names):
                 tag = "uninf." if det in _uninformative(metrics, s) else "n/a"
+                top = max(np.nan_to_num(m), c[1] if c is not None and np.isfinite(m) else 0.0)
                 ax.text(xi, top + 1.0, tag if np.isnan(m) else f"{m:.1f}", rotation=90,
                         ha="center", va="bottom", fontsize=6)
         ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s in names])
         ax.set_xlim(-0.6, max(len(names), 1) - 0.4)
         _percent_axis(ax, 118.0, "Correct decision rate [%]", bool(names), ncols=5)
-    return path
+
+    return drawn(path, ax, title, draw, figsize=(9.0, 4.5))
 
 
-def _num(v) -> float:
-    return float("nan") if v is None else float(v)
-
-
-def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
-                  threshold_m: float = 15.0) -> Path:
+def plot_outcomes(metrics: dict, path: str | Path | None = None, title: str | None = None,
+                  threshold_m: float = 15.0, ax=None):
     """Stacked outcome bars per scenario: standard PRS group, then encrypted PRS group.
 
     Success green, large error red, service failure gray (paper Fig. "encrypted_PRS"). The
     encrypted group is left out when no scenario has ``outcomes_encrypted``; missing or None
-    shares are drawn as 0.
+    shares are drawn as 0. A share's 95 % interval (:func:`rate_interval`), where the metrics
+    hold one, is an error bar at the top of its segment.
 
     :param threshold_m: success threshold, m, only used in the legend label
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
+        it is without ``ax`` and ``path``; with ``path`` the figure is saved there, the path
+        returned
     """
-    groups = [(name, _scenarios(metrics, key)) for name, key in
+    groups = [(name, key, _scenarios(metrics, key)) for name, key in
               (("Standard PRS", "outcomes"), ("Encrypted PRS", "outcomes_encrypted"))]
-    groups = [g for g in groups if g[1]]
+    groups = [g for g in groups if g[2]]
     labels = {"success": f"Success (error ≤ {threshold_m:g} m)",
               "large_error": f"Large error / spoofing (> {threshold_m:g} m)",
               "service_failure": "Service failure"}
-    path = Path(path)
-    with figure(path, title, figsize=(8.0, 5.0), margins_in=_BAR_MARGINS_IN["outcomes"]) as (_, ax):
+    sc = metrics.get("scenarios", {})
+
+    def draw(_, axes):
+        ax = axes[0, 0]
         ticks, ticklabels, start = [], [], 0.0
-        for gi, (name, entries) in enumerate(groups):
+        for gi, (name, key, entries) in enumerate(groups):
             x = start + np.arange(len(entries), dtype=float)
             bottom = np.zeros(len(entries))
             for o in OUTCOMES:
-                h = np.nan_to_num([_value(e, o) for _, e in entries])
+                h = np.nan_to_num([rate_percent(e.get(o)) for _, e in entries])
                 ax.bar(x, h, 0.7, bottom=bottom, color=_OUTCOME_COLOURS[o], edgecolor="k",
                        label=labels[o] if gi == 0 else None)
+                # the share's interval, moved to the top of its segment
+                ci = [rate_interval(sc[s], key, o) for s, _ in entries]
+                moved = [None if c is None else (c[0] + b, c[1] + b) for c, b in zip(ci, bottom)]
+                _error_bars(ax, x, bottom + h, moved)
                 bottom += h
             centre = start + (len(entries) - 1) / 2.0
             ax.text(centre, 104.0, name, ha="center", va="bottom", fontweight="bold")
@@ -221,59 +310,64 @@ def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
             start += len(entries) + 0.5
         ax.set_xticks(ticks, ticklabels, rotation=30, ha="right")
         _percent_axis(ax, 112.0, "Percentage of outcomes [%]", bool(groups), ncols=3)
-    return path
+
+    return drawn(path, ax, title, draw, figsize=(8.0, 5.0), margins_in=_BAR_MARGINS_IN["outcomes"])
 
 
-def plot_detection_rates(metrics: dict, path: str | Path | None, title: str | None = None,
+def plot_detection_rates(metrics: dict, path: str | Path | None = None, title: str | None = None,
                          reference: dict | None = None, ax=None):
     """Grouped correct-decision-rate bars: x = scenario, one bar per detector, values written on.
 
     Undefined (None) rates get no bar and an "n/a" label; a detector a scenario flags
     uninformative (its ``uninformative_detectors``: its rejections are no detections) gets no
-    bar and an "uninf." label. ``reference`` ({scenario: {detector: percent}}, e.g. the paper's
-    Fig. "techniques") is drawn as dashed black outlines labelled "paper".
+    bar and an "uninf." label. A rate's 95 % interval (:func:`rate_interval`), where the
+    metrics hold one, is an error bar. ``reference`` ({scenario: {detector: percent}}, e.g. the
+    paper's Fig. "techniques") is drawn as dashed black outlines labelled "paper".
 
-    :param ax: a matplotlib ``Axes`` to draw on instead (``path`` unused, nothing saved, the
-        axes' ``Figure`` returned); without it the figure is saved to ``path``, returned
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
+        it is without ``ax`` and ``path``; with ``path`` the figure is saved there, the path
+        returned
     """
     entries = _scenarios(metrics, "correct_decision_rate")
     reference = reference or {}
     if not isinstance(reference, dict):
         raise TypeError(f"Argument `reference` must be a dict or None, "
                         f"not {type(reference).__name__}")
-    if ax is not None:
-        _draw_detection_rates(ax, metrics, entries, reference)
-        if title:
-            ax.set_title(title)
-        return ax.figure
-    path = Path(path)
-    with figure(path, title, figsize=(9.0, 4.5), margins_in=_BAR_MARGINS_IN["rates"]) as (_, ax):
-        _draw_detection_rates(ax, metrics, entries, reference)
-    return path
+    sc = metrics.get("scenarios", {})
+    return drawn(path, ax, title,
+                  lambda _, axes: _draw_detection_rates(axes[0, 0], metrics, sc, entries,
+                                                        reference),
+                  figsize=(9.0, 4.5), margins_in=_BAR_MARGINS_IN["rates"])
 
 
-def _draw_detection_rates(ax, metrics: dict, entries: list, reference: dict) -> None:
+def _draw_detection_rates(ax, metrics: dict, sc: dict, entries: list, reference: dict) -> None:
     """The bars of :func:`plot_detection_rates` on ``ax``."""
     width = 0.16
     x = np.arange(len(entries), dtype=float)
     offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
     xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
     uninf = [_uninformative(metrics, s) for s, _ in entries]
-    vals = np.array([[np.nan if d in u else _value(e, d) for (_, e), u in zip(entries, uninf)]
-                     for d in DETECTORS])
+    vals = np.array([[np.nan if d in u else rate_percent(e.get(d))
+                      for (_, e), u in zip(entries, uninf)] for d in DETECTORS])
+    cis = [[rate_interval(sc[s], "correct_decision_rate", d) for s, _ in entries]
+           for d in DETECTORS]
     tags = [["uninf." if d in u else "n/a" for u in uninf] for d in DETECTORS]
     refs = np.array([[_value(reference.get(s) or {}, d) for s, _ in entries]
                      for d in DETECTORS])
-    for det, xk, vk in zip(DETECTORS, xs, vals):
+    for det, xk, vk, ck in zip(DETECTORS, xs, vals, cis):
         label, colour = _DETECTOR_STYLE[det]
         ax.bar(xk, np.nan_to_num(vk), width, color=colour, label=label)
+        _error_bars(ax, xk, vk, ck)
     ref = np.isfinite(refs)
     if ref.any():
         ax.bar(xs[ref], refs[ref], width, fill=False, edgecolor="k", ls="--", lw=0.8,
                label="paper")
-    for xi, v, r, tag in zip(xs.ravel(), vals.ravel(), refs.ravel(), np.ravel(tags)):
-        ax.text(xi, np.nanmax([0.0, v, r]) + 1.0, tag if np.isnan(v) else f"{v:.1f}",
-                rotation=90, ha="center", va="bottom", fontsize=6)
+    tops = np.array([[c[1] if c is not None else np.nan for c in ck] for ck in cis])
+    for xi, v, r, t, tag in zip(xs.ravel(), vals.ravel(), refs.ravel(), tops.ravel(),
+                                np.ravel(tags)):
+        ax.text(xi, np.nanmax([0.0, v, r, t if np.isfinite(v) else np.nan]) + 1.0,
+                tag if np.isnan(v) else f"{v:.1f}", rotation=90, ha="center", va="bottom",
+                fontsize=6)
     ax.set_xticks(x, [_SCENARIO_LABELS.get(s, s) for s, _ in entries])
     ax.set_xlim(-0.6, max(len(entries), 1) - 0.4)
     _percent_axis(ax, 118.0, "Correct decision rate [%]", bool(entries), ncols=6)
@@ -301,8 +395,8 @@ def _columns(rows: dict, names) -> list[np.ndarray]:
     return cols
 
 
-def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int] | None,
-                     title: str | None = None, threshold_m: float = 15.0) -> Path:
+def plot_time_series(rows: dict, path: str | Path | None, attack_window: tuple[int, int] | None,
+                     title: str | None = None, threshold_m: float = 15.0, ax=None):
     """Five valid/invalid step panels (one per detector) and an error panel over the trajectory.
 
     x is the 1-based trajectory point (``index + 1``, paper Fig. "all_attacks"). The error panel
@@ -312,6 +406,10 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
     :param attack_window: ``(start, stop)`` 0-based points, stop excluded (as
         ``RunConfig.attack_points``), shaded red; None for no shading
     :param threshold_m: success threshold, m
+    :param ax: six matplotlib ``Axes`` to draw on, top to bottom (a sequence; one step panel
+        per detector in :data:`DETECTORS` order, then the error panel); ``path`` unused, the
+        first one's Figure returned. Without ``ax`` and ``path`` a new Figure is returned;
+        with ``path`` the figure is saved there and the path returned
     """
     *dets, err = _columns(rows, DETECTORS + ("error_m",))
     idx = np.asarray(rows["index"]).ravel() if "index" in rows else np.arange(len(err))
@@ -324,10 +422,23 @@ def plot_time_series(rows: dict, path: str | Path, attack_window: tuple[int, int
             raise bad_value("attack_window", attack_window, "(start, stop) ints, 0 <= start <= stop")
     x = idx.astype(float) + 1.0
     err = np.maximum(err.astype(float), 1e-2)  # log axis: a zero error sits at 1 cm
+    dets = [d.astype(float) for d in dets]
+    if ax is not None or path is None:
+        if ax is None:
+            fig = new_figure((10.0, 9.0))
+            axes = fig.subplots(len(DETECTORS) + 1, 1, sharex=True,
+                                height_ratios=[1] * len(DETECTORS) + [1.6])
+        else:
+            fig, axes = new_axes(ax, len(DETECTORS) + 1, 1)
+        ts = _TimeSeriesFigure(bool(title), threshold_m, axes=list(np.ravel(axes)))
+        ts.show(x, dets, err, attack_window)
+        if title:
+            fig.suptitle(title)
+        return fig
     path = Path(path)
     with _kept_figure(("time series", bool(title), float(threshold_m)),
                       lambda: _TimeSeriesFigure(bool(title), threshold_m)) as ts:
-        ts.draw(path, x, [d.astype(float) for d in dets], err, attack_window, title)
+        ts.draw(path, x, dets, err, attack_window, title)
     log.info("wrote %s", path)
     return path
 
@@ -341,7 +452,7 @@ class _KeptFigure:
         if title:
             self.fig.suptitle(title)
         with atomic_output(path) as tmp:   # a stopped run leaves no half-written PNG
-            self.fig.savefig(tmp, **_SAVE_KW.get(path.suffix.lower(), {}))
+            self.fig.savefig(tmp, dpi=_DPI.get(), **_SAVE_KW.get(path.suffix.lower(), {}))
 
     def close(self) -> None:
         self.fig.clear()
@@ -356,18 +467,23 @@ class _TimeSeriesFigure(_KeptFigure):
     :func:`_kept_figure`, a matplotlib ``Figure`` outside pyplot.
     """
 
-    def __init__(self, titled: bool, threshold_m: float):
-        import matplotlib
-        matplotlib.use("Agg")
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
+    def __init__(self, titled: bool, threshold_m: float, axes: list | None = None):
+        """``axes``: six Axes of another figure to draw on (not kept: :func:`plot_time_series`
+        with ``ax=``)."""
+        if axes is not None:
+            self.fig, self.axes = axes[0].figure, axes
+        else:
+            import matplotlib
+            matplotlib.use("Agg")
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.figure import Figure
 
-        self.fig = Figure(figsize=(10.0, 9.0), dpi=110)
-        FigureCanvasAgg(self.fig)
-        self.axes = self.fig.subplots(6, 1, sharex=True, height_ratios=[1] * 5 + [1.6])
-        # fixed margins: the labels are the same on every run ("Invalid", "error [m]", ...)
-        self.fig.subplots_adjust(left=0.09, right=0.985, bottom=0.06,
-                                 top=0.95 if titled else 0.985, hspace=0.12)
+            self.fig = Figure(figsize=(10.0, 9.0), dpi=110)
+            FigureCanvasAgg(self.fig)
+            self.axes = self.fig.subplots(6, 1, sharex=True, height_ratios=[1] * 5 + [1.6])
+            # fixed margins: the labels are the same on every run ("Invalid", "error [m]", ...)
+            self.fig.subplots_adjust(left=0.09, right=0.985, bottom=0.06,
+                                     top=0.95 if titled else 0.985, hspace=0.12)
         self.steps = []
         for ax, det in zip(self.axes, DETECTORS):
             label, colour = _DETECTOR_STYLE[det]
@@ -389,19 +505,25 @@ class _TimeSeriesFigure(_KeptFigure):
     def draw(self, path: Path, x: np.ndarray, dets: list, err: np.ndarray,
              attack_window: tuple[int, int] | None, title: str | None) -> None:
         """Show one scenario and save the figure to ``path``."""
+        self.show(x, dets, err, attack_window)
+        self._save(path, title)
+
+    def show(self, x: np.ndarray, dets: list, err: np.ndarray,
+             attack_window: tuple[int, int] | None) -> None:
+        """Show one scenario's data, limits and attack window."""
         for line, y in zip(self.steps, dets):
             line.set_data(x, y)
         self.error.set_data(x, err)
         t = self.threshold_m
         finite = err[np.isfinite(err)]
         self.axes[-1].set_ylim(min(finite.min(initial=t), t) / 2.0, max(finite.max(initial=t), t) * 2.0)
-        self.axes[-1].set_xlim(0.0, max(x.max(initial=1.0), 1.0))
+        for a in self.axes:   # shared on the kept figure; maybe not on the caller's axes
+            a.set_xlim(0.0, max(x.max(initial=1.0), 1.0))
         while self.spans:
             self.spans.pop().remove()
         if attack_window is not None:
             self.spans = [a.axvspan(attack_window[0] + 0.5, attack_window[1] + 0.5, color="red",
                                     alpha=0.15, lw=0) for a in self.axes]
-        self._save(path, title)
 
 
 class _MapFigure(_KeptFigure):
@@ -422,8 +544,8 @@ class _MapFigure(_KeptFigure):
 
     def clean_axes(self):
         """The axes without the previous map's lines and legend."""
-        for line in list(self.ax.lines):
-            line.remove()
+        for artist in [*self.ax.lines, *self.ax.collections, *self.ax.patches]:
+            artist.remove()
         if self.ax.get_legend() is not None:
             self.ax.get_legend().remove()
         return self.ax
@@ -482,9 +604,109 @@ def _xy(arr, name: str) -> np.ndarray:
     return a[:, :2]
 
 
-def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
-                        title: str | None = None, margin_m: float = 50.0) -> Path:
-    """Top view: true path, estimates coloured by outcome, BSs (triangles), adversary (orange).
+#: face colour of the buildings under the trajectory map (light: the paths drawn over them stay
+#: legible)
+_BUILDING_COLOUR = "0.82"
+
+
+def map_buildings(geometry) -> np.ndarray:
+    """The buildings of ``geometry``'s scene seen from above, for :func:`plot_trajectory_map`:
+    the procedural canyon's footprints as [num_buildings, 4] float64 rectangles, m (x_min,
+    y_min, x_max, y_max), or a mesh scene's (OpenStreetMap import, Mitsuba XML) building faces
+    projected to the ground as [num_faces, 3, 2] float64 triangles, m, walls (no projected area)
+    left out: the roofs fill the footprints.
+
+    :param geometry: a :class:`~veriloc_rt.world.geometry.Geometry` (its ``scene``)
+    """
+    scene = geometry.scene
+    fp = getattr(scene, "footprints", None)
+    if fp is not None:
+        return np.asarray(fp, dtype=float).reshape(-1, 4)
+    tri = np.asarray(scene.building_triangles, dtype=float).reshape(-1, 3, 3)[:, :, :2]
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+                        - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1]))
+    return tri[area > _MIN_FACE_AREA_M2]
+
+
+#: projected area below which a mesh face is a wall seen edge-on (not drawn on the map), m^2
+_MIN_FACE_AREA_M2 = 1e-6
+
+
+def _building_collection(buildings, lo: np.ndarray, hi: np.ndarray):
+    """A matplotlib collection of the ``buildings`` (:func:`map_buildings`) within the view
+    ``lo``..``hi``, or None when there are none there."""
+    from matplotlib.collections import PolyCollection
+
+    b = np.asarray(buildings, dtype=float)
+    if b.size == 0:
+        return None
+    if b.ndim == 2 and b.shape[1] == 4:          # rectangles -> their four corners
+        x0, y0, x1, y1 = b.T
+        b = np.stack([np.stack([x0, y0], -1), np.stack([x1, y0], -1), np.stack([x1, y1], -1),
+                      np.stack([x0, y1], -1)], axis=1)
+    elif not (b.ndim == 3 and b.shape[2] == 2):
+        raise bad_value("buildings", f"array of shape {b.shape}",
+                        "[n, 4] rectangles or [n, k, 2] polygons")
+    seen = np.all((b.max(axis=1) >= lo) & (b.min(axis=1) <= hi), axis=1)
+    if not seen.any():
+        return None
+    return PolyCollection(b[seen], facecolor=_BUILDING_COLOUR, edgecolor=_BUILDING_COLOUR,
+                          linewidths=0.3, zorder=0.5, label="buildings")
+
+
+def new_axes(ax=None, nrows: int = 1, ncols: int = 1, figsize=(8.0, 5.0),
+             squeeze: bool = True, **kw):
+    """``(figure, axes)`` to draw on.
+
+    With ``ax``: one matplotlib ``Axes`` for a one-panel figure, or a sequence of
+    ``nrows * ncols`` of them (any nesting), returned as an array of that grid (squeezed as
+    ``Figure.subplots`` squeezes), and the first one's figure. Without: a new ``Figure``
+    outside pyplot (Agg canvas, constrained layout) with that grid of axes (``kw`` to
+    ``Figure.subplots``).
+
+    :raises InputError: ``ax`` holds another number of Axes than panels
+    """
+    if ax is not None:
+        axes = np.asarray(ax, dtype=object).ravel()
+        if axes.size != nrows * ncols:
+            raise bad_value("ax", f"{axes.size} Axes", f"{nrows * ncols} Axes (one per panel)")
+        grid = axes.reshape(nrows, ncols)
+        return axes[0].figure, (grid.squeeze() if grid.size > 1 else grid[0, 0]) if squeeze \
+            else grid
+    fig = new_figure(figsize)
+    return fig, fig.subplots(nrows, ncols, squeeze=squeeze, **kw)
+
+
+def new_figure(figsize=(8.0, 5.0), layout: str | None = "constrained"):
+    """A matplotlib ``Figure`` outside pyplot (no pyplot state): Agg canvas, ``layout``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=DEFAULT_DPI, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save_figure(fig, path: str | Path, **kw) -> Path:
+    """Save ``fig`` to ``path`` (format from the suffix: png, pdf, svg) at the resolution of
+    :func:`figure_dpi`, atomically (a stopped run leaves no half-written file)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, format=path.suffix.lstrip(".").lower() or None, dpi=_DPI.get(),
+                    **{**_SAVE_KW.get(path.suffix.lower(), {}), **kw})
+    log.info("wrote %s", path)
+    return path
+
+
+def plot_trajectory_map(rows: dict, bs_pos, path: str | Path | None = None, adversary_xy=None,
+                        title: str | None = None, margin_m: float = 50.0, buildings=None,
+                        ax=None):
+    """Top view: the buildings (light gray, under everything), true path, estimates coloured
+    by outcome, BSs (triangles), adversary (orange).
 
     The view is the bounding box of the true path, the BSs and the adversary plus ``margin_m``;
     estimates beyond it (spoofed outliers) are drawn on its edge with an "X" marker.
@@ -492,6 +714,11 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     :param bs_pos: [num_bs, 3] or [num_bs, 2] float, m
     :param adversary_xy: [num_points, 2] or [num_points, 3] float, m, optional
     :param margin_m: view margin, m
+    :param buildings: :func:`map_buildings` of the run's geometry ([n, 4] rectangles or
+        [n, k, 2] polygons, m), optional
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused); the Figure is returned.
+        Without ``ax`` and ``path`` a new Figure is returned; with ``path`` the map is saved
+        there and the path returned
     """
     xt, yt, xe, ye, outcome = _columns(rows, ("x_true", "y_true", "x_est", "y_est", "outcome"))
     bs = _xy(bs_pos, "bs_pos")
@@ -502,35 +729,50 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path, adversary_xy=None,
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo = (pts.min(axis=0) if len(pts) else np.zeros(2)) - margin_m
     hi = (pts.max(axis=0) if len(pts) else np.zeros(2)) + margin_m
-    has_fix = np.isfinite(est).all(axis=1)
-    inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
+    draw = lambda ax: _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings)  # noqa: E731
+    if ax is not None or path is None:
+        fig, ax = new_axes(ax, figsize=(8.0, 8.0))
+        draw(ax)
+        if title:
+            ax.set_title(title)
+        return fig
     path = Path(path)
     with _kept_figure(("map", bool(title)), lambda: _MapFigure(bool(title))) as kept:
-        ax = kept.clean_axes()
-        ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
-        for o in OUTCOMES[:2]:
-            sel = outcome == o
-            colour = _OUTCOME_COLOURS[o]
-            ax.plot(est[sel & inside, 0], est[sel & inside, 1], ".", color=colour, ms=4,
-                    label=f"estimate: {o.replace('_', ' ')} ({int(np.sum(sel & has_fix))})")
-            out = np.clip(est[sel & has_fix & ~inside], lo, hi)
-            ax.plot(out[:, 0], out[:, 1], "X", color=colour, mec="k", mew=0.5, ms=7)
-        n_out = int(np.sum(has_fix & ~inside))
-        if n_out:
-            ax.plot([], [], "X", color="w", mec="k", ms=7, label=f"beyond view, at edge ({n_out})")
-        if len(adv):
-            ax.plot(adv[:, 0], adv[:, 1], ".", color="tab:orange", ms=3, label="adversary")
-        ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label="BSs")
-        pad = 0.02 * (hi - lo).max()  # keeps the edge markers inside the axes
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (east) [m]")
-        ax.set_ylabel("y (north) [m]")
-        ax.legend(loc="best", fontsize=8, framealpha=0.9)
+        draw(kept.clean_axes())
         kept.save(path, title)
     log.info("wrote %s", path)
     return path
+
+
+def _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings) -> None:
+    """The layers of :func:`plot_trajectory_map` on ``ax``."""
+    has_fix = np.isfinite(est).all(axis=1)
+    inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
+    if buildings is not None:
+        coll = _building_collection(buildings, lo, hi)
+        if coll is not None:
+            ax.add_collection(coll, autolim=False)
+    ax.plot(true[:, 0], true[:, 1], "-", color="tab:blue", lw=1.5, label="true")
+    for o in OUTCOMES[:2]:
+        sel = outcome == o
+        colour = _OUTCOME_COLOURS[o]
+        ax.plot(est[sel & inside, 0], est[sel & inside, 1], ".", color=colour, ms=4,
+                label=f"estimate: {o.replace('_', ' ')} ({int(np.sum(sel & has_fix))})")
+        out = np.clip(est[sel & has_fix & ~inside], lo, hi)
+        ax.plot(out[:, 0], out[:, 1], "X", color=colour, mec="k", mew=0.5, ms=7)
+    n_out = int(np.sum(has_fix & ~inside))
+    if n_out:
+        ax.plot([], [], "X", color="w", mec="k", ms=7, label=f"beyond view, at edge ({n_out})")
+    if len(adv):
+        ax.plot(adv[:, 0], adv[:, 1], ".", color="tab:orange", ms=3, label="adversary")
+    ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label="BSs")
+    pad = 0.02 * (hi - lo).max()  # keeps the edge markers inside the axes
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (east) [m]")
+    ax.set_ylabel("y (north) [m]")
+    ax.legend(loc="best", fontsize=8, framealpha=0.9)
 
 
 def read_results_csv(path: str | Path) -> dict[str, np.ndarray]:
@@ -570,8 +812,8 @@ def read_results_csv(path: str | Path) -> dict[str, np.ndarray]:
     return out
 
 
-def plot_pareto(rows: list[dict], path: str | Path, y_axis: dict[str, tuple[str, str]],
-                title: str | None = None) -> None:
+def plot_pareto(rows: list[dict], path: str | Path | None, y_axis: dict[str, tuple[str, str]],
+                title: str | None = None, ax=None):
     """Time against accuracy of a fidelity sweep (``veriloc-rt bench``), one panel per group.
 
     :param rows: bench rows (``veriloc_rt.studies.bench``): group, label, role, time_s, time_unit,
@@ -581,64 +823,71 @@ def plot_pareto(rows: list[dict], path: str | Path, y_axis: dict[str, tuple[str,
         reference, 0 by definition, drawn at the axis floor; an infinite deviation, a link lost
         or gained, on a dotted band above the rest); the Pareto front joined by a line, the
         config's setting starred, the noise floor dashed.
+    :param ax: one matplotlib ``Axes`` per group present ('raytrace', then 'waveform'; a
+        sequence when both are), ``path`` unused, the Figure returned (as without ``ax`` and
+        ``path``); with ``path`` the figure is saved there and the path returned
     """
     groups = [g for g in ("raytrace", "waveform") if any(r["group"] == g for r in rows)]
     if not groups:
         raise ValueError("Argument `rows` holds no bench settings")
-    with figure(path, title, ncols=len(groups), figsize=(6.5 * len(groups), 5.0),
-                 squeeze=False) as (fig, axes):
-        for ax, g in zip(axes[0], groups):
-            grp = [r for r in rows if r["group"] == g]
-            key, y_label = y_axis[g]
-            dev = np.array([np.nan if r.get(key) is None else r[key] for r in grp], dtype=float)
-            t = np.array([r["time_s"] for r in grp], dtype=float)
-            pos = dev[np.isfinite(dev) & (dev > 0)]
-            floor = max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
-            # an infinite deviation (a link lost or gained) is drawn on a band above the rest
-            top = float(pos.max()) * 4 if pos.size else 1.0
-            y = np.where(np.isfinite(dev), np.maximum(dev, floor), np.where(np.isinf(dev), top, np.nan))
-            if np.isinf(dev).any():
-                ax.axhline(top, color="tab:red", ls=":", lw=1, label="links lost or gained (infinite)")
-            placed: list[tuple[float, float]] = []
-            for r, xi, yi, di in zip(grp, t, y, dev):
-                if r["role"] == "noise floor" or not np.isfinite(yi):
-                    continue
-                if np.isinf(di):   # the band: labels slanted upwards, side by side
-                    ax.scatter([xi], [yi], s=140 if r["role"] == "config" else 36,
-                               marker="*" if r["role"] == "config" else "^",
-                               color="tab:red" if r["role"] == "config" else "0.6", zorder=3)
-                    ax.annotate(r["label"], (xi, yi), fontsize=6.5, xytext=(0, 6), rotation=60,
-                                textcoords="offset points")
-                    continue
-                # stack the labels of nearby points (log axes) instead of overprinting them
-                near = sum(abs(np.log10(xi) - px) < 0.35 and abs(np.log10(yi) - py) < 0.08
-                           for px, py in placed)
-                placed.append((float(np.log10(xi)), float(np.log10(yi))))
-                star = r["role"] == "config"
-                ax.scatter([xi], [yi], s=140 if star else 36, marker="*" if star else "o",
-                           color="tab:red" if star else ("tab:blue" if r["pareto"] else "0.6"),
-                           zorder=3)
-                text = "reference (0, drawn at the floor)" if r["role"] == "reference" else r["label"]
-                ax.annotate(text, (xi, yi), fontsize=7, xytext=(4, 3 + 9 * near),
+    return drawn(path, ax, title, lambda _, axes: _draw_pareto(axes, rows, groups, y_axis),
+                  ncols=len(groups), figsize=(6.5 * len(groups), 5.0))
+
+
+def _draw_pareto(axes, rows: list[dict], groups: list[str], y_axis: dict) -> None:
+    """The panels of :func:`plot_pareto` on ``axes`` [1, len(groups)]."""
+    for ax, g in zip(axes[0], groups):
+        grp = [r for r in rows if r["group"] == g]
+        key, y_label = y_axis[g]
+        dev = np.array([np.nan if r.get(key) is None else r[key] for r in grp], dtype=float)
+        t = np.array([r["time_s"] for r in grp], dtype=float)
+        pos = dev[np.isfinite(dev) & (dev > 0)]
+        floor = max(float(pos.min()) / 3 if pos.size else 1e-2, 1e-4)
+        # an infinite deviation (a link lost or gained) is drawn on a band above the rest
+        top = float(pos.max()) * 4 if pos.size else 1.0
+        y = np.where(np.isfinite(dev), np.maximum(dev, floor), np.where(np.isinf(dev), top, np.nan))
+        if np.isinf(dev).any():
+            ax.axhline(top, color="tab:red", ls=":", lw=1, label="links lost or gained (infinite)")
+        placed: list[tuple[float, float]] = []
+        for r, xi, yi, di in zip(grp, t, y, dev):
+            if r["role"] == "noise floor" or not np.isfinite(yi):
+                continue
+            if np.isinf(di):   # the band: labels slanted upwards, side by side
+                ax.scatter([xi], [yi], s=140 if r["role"] == "config" else 36,
+                           marker="*" if r["role"] == "config" else "^",
+                           color="tab:red" if r["role"] == "config" else "0.6", zorder=3)
+                ax.annotate(r["label"], (xi, yi), fontsize=6.5, xytext=(0, 6), rotation=60,
                             textcoords="offset points")
-            front = [(xi, yi) for r, xi, yi, di in zip(grp, t, y, dev)
-                     if r["pareto"] and np.isfinite(di)]
-            if front:
-                fx, fy = zip(*sorted(front))
-                ax.step(fx, fy, where="post", color="tab:blue", lw=1.2, label="Pareto front")
-            nf = [yi for r, yi in zip(grp, y) if r["role"] == "noise floor" and np.isfinite(yi)]
-            if nf:
-                ax.axhline(nf[0], color="0.3", ls="--", lw=1, label="noise floor (other noise draws)")
-            ax.set_xscale("log")
-            ax.set_yscale("log")
-            if np.isinf(dev).any():
-                ax.set_ylim(top=top * 12)
-            unit = grp[0]["time_unit"]
-            ax.set_xlabel(f"seconds per {unit}")
-            ax.set_ylabel(y_label)
-            ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
-            ax.grid(True, which="both", alpha=0.3)
-            ax.legend(loc="lower left", fontsize=8)
+                continue
+            # stack the labels of nearby points (log axes) instead of overprinting them
+            near = sum(abs(np.log10(xi) - px) < 0.35 and abs(np.log10(yi) - py) < 0.08
+                       for px, py in placed)
+            placed.append((float(np.log10(xi)), float(np.log10(yi))))
+            star = r["role"] == "config"
+            ax.scatter([xi], [yi], s=140 if star else 36, marker="*" if star else "o",
+                       color="tab:red" if star else ("tab:blue" if r["pareto"] else "0.6"),
+                       zorder=3)
+            text = "reference (0, drawn at the floor)" if r["role"] == "reference" else r["label"]
+            ax.annotate(text, (xi, yi), fontsize=7, xytext=(4, 3 + 9 * near),
+                        textcoords="offset points")
+        front = [(xi, yi) for r, xi, yi, di in zip(grp, t, y, dev)
+                 if r["pareto"] and np.isfinite(di)]
+        if front:
+            fx, fy = zip(*sorted(front))
+            ax.step(fx, fy, where="post", color="tab:blue", lw=1.2, label="Pareto front")
+        nf = [yi for r, yi in zip(grp, y) if r["role"] == "noise floor" and np.isfinite(yi)]
+        if nf:
+            ax.axhline(nf[0], color="0.3", ls="--", lw=1, label="noise floor (other noise draws)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        if np.isinf(dev).any():
+            ax.set_ylim(top=top * 12)
+        unit = grp[0]["time_unit"]
+        ax.set_xlabel(f"seconds per {unit}")
+        ax.set_ylabel(y_label)
+        ax.set_title("ray tracing" if g == "raytrace" else "waveform and receiver")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(loc="lower left", fontsize=8)
 
 
 def _cdf(ax, x, label: str, **kw) -> None:
@@ -648,10 +897,14 @@ def _cdf(ax, x, label: str, **kw) -> None:
         ax.plot(x, np.arange(1, x.size + 1) / x.size, label=f"{label} (n={x.size})", **kw)
 
 
-def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = None) -> None:
+def plot_comparison_cdfs(benign: dict, path: str | Path | None = None, title: str | None = None,
+                         ax=None):
     """CDFs of the benign chain's errors per propagation model (``veriloc-rt compare``).
 
     :param benign: {model: :class:`veriloc_rt.studies.diagnostics.BenignRun`}
+    :param ax: four matplotlib ``Axes`` (a sequence or a 2 x 2 array: position error, ToA
+        bias, RSTD error, AoA error), ``path`` unused, the Figure returned (as without ``ax``
+        and ``path``); with ``path`` the figure is saved there and the path returned
     """
     panels = (("position_error_m", "DL position error, m"),
               ("toa_bias_m", "ToA bias against the straight-line delay, m"),
@@ -659,8 +912,7 @@ def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = Non
               ("aoa_error_deg", "AoA error against the BS direction, deg"))
     colours = {"raytrace": "tab:blue", "uma": "tab:orange", "umi": "tab:green"}
     names = {"raytrace": "ray tracing", "uma": "TR 38.901 UMa", "umi": "TR 38.901 UMi"}
-    with figure(path, title or "benign errors: ray tracing vs UMa", nrows=2, ncols=2,
-                 figsize=(11.0, 8.0)) as (fig, axes):
+    def draw(_, axes):
         for ax, (attr, label) in zip(axes.ravel(), panels):
             for model, b in benign.items():
                 _cdf(ax, getattr(b, attr), names.get(model, model), color=colours.get(model))
@@ -674,11 +926,22 @@ def plot_comparison_cdfs(benign: dict, path: str | Path, title: str | None = Non
                 ax.set_xscale("symlog", linthresh=1.0)
                 ax.set_xlim(left=0.0)
 
+    return drawn(path, ax, title or ("benign errors: ray tracing vs " + " vs ".join(
+        names.get(m, m) for m in benign if m != "raytrace")), draw, nrows=2, ncols=2,
+        figsize=(11.0, 8.0))
 
-def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | None = None) -> None:
-    """Correct-decision rate per detector and scenario, one bar per propagation model.
+
+def plot_comparison_detectors(detectors: dict, path: str | Path | None = None,
+                              title: str | None = None, ax=None):
+    """Correct-decision rate per detector and scenario, one bar per propagation model (plain:
+    ray tracing, hatched: the stochastic twin), a rate's 95 % interval (:func:`rate_interval`)
+    as an error bar where the metrics hold one; a detector a model's scenario flags
+    uninformative gets no bar and an "uninf." label.
 
     :param detectors: {model: metrics.json "scenarios"}
+    :param ax: one matplotlib ``Axes`` per evaluated scenario (none, fbs, meaconing, jamming:
+        those with points; a sequence), ``path`` unused, the Figure returned (as without ``ax``
+        and ``path``); with ``path`` the figure is saved there and the path returned
     """
     models = list(detectors)
     scen = [s for s in _SCENARIO_LABELS if any((detectors[m].get(s) or {}).get("num_points")
@@ -686,19 +949,22 @@ def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | No
     if not scen:
         raise ValueError("Argument `detectors` holds no evaluated scenario")
     hatches = {"raytrace": "", "uma": "//", "umi": "//"}
-    with figure(path, title or "correct decisions: ray tracing (plain) vs UMa (hatched)",
-                 ncols=len(scen), figsize=(3.2 * len(scen) + 1.0, 4.2), squeeze=False) as (fig, axes):
+
+    def draw(_, axes):
         for ax, s in zip(axes[0], scen):
             x = np.arange(len(DETECTORS))
             w = 0.8 / len(models)
             for k, m in enumerate(models):
-                rates = (detectors[m].get(s) or {}).get("correct_decision_rate") or {}
+                block = detectors[m].get(s) or {}
+                rates = block.get("correct_decision_rate") or {}
                 uninf = _uninformative(detectors[m], s)   # no bar: no detection to show
-                v = [np.nan if d in uninf else _value(rates, d) for d in DETECTORS]
+                v = [np.nan if d in uninf else rate_percent(rates.get(d)) for d in DETECTORS]
                 xk = x + (k - (len(models) - 1) / 2) * w
                 ax.bar(xk, np.nan_to_num(v), w,
                        color=[_DETECTOR_STYLE[d][1] for d in DETECTORS], hatch=hatches.get(m, "xx"),
                        edgecolor="white", label=m)
+                _error_bars(ax, xk, v, [rate_interval(block, "correct_decision_rate", d)
+                                        for d in DETECTORS])
                 for xi, d in zip(xk, DETECTORS):
                     if d in uninf:
                         ax.text(xi, 1.0, "uninf.", rotation=90, ha="center", va="bottom",
@@ -708,3 +974,8 @@ def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | No
             ax.set_title(_SCENARIO_LABELS[s])
             ax.grid(True, axis="y", alpha=0.3)
         axes[0][0].set_ylabel("correct decisions, %")
+
+    twins = [m for m in models if m != "raytrace"]
+    return drawn(path, ax, title or "correct decisions: ray tracing (plain) vs "
+                  f"{' / '.join(twins) or 'none'} (hatched)", draw, ncols=len(scen),
+                  figsize=(3.2 * len(scen) + 1.0, 4.2))

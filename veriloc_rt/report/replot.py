@@ -2,14 +2,16 @@
 
 ``veriloc-rt plot RUN_DIR --out DIR --plot-format pdf --dpi 300`` (paper-ready figures):
 ``outcomes``, ``detection_rates`` (uninformative detectors without an attack bar), ``roc`` and
-each scenario's ``<scenario>_timeseries``, drawn from ``metrics.json``, ``run.json`` and the
-``<scenario>_results.csv`` files into ``DIR`` (never into the run folder, whose PNGs stay as the
-run wrote them).
+each scenario's ``<scenario>_timeseries`` and ``<scenario>_map`` (the buildings under the
+paths; the geometry rebuilt from the run's config, nothing traced), drawn from
+``metrics.json``, ``run.json`` and the ``<scenario>_results.csv`` files into ``DIR`` (never into
+the run folder, whose PNGs stay as the run wrote them).
 """
 
 from __future__ import annotations
 
 import json
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -64,4 +66,15 @@ def replot(run_dir: str | Path, out_dir: str | Path, fmt: str = "png",
             data = plots.read_results_csv(results_path(run_dir, s))
             written.append(plots.plot_time_series(data, out_dir / f"{s}_timeseries.{fmt}", span,
                                                   title=s))
+        if rows:
+            from ..world.geometry import build_geometry
+
+            with tempfile.TemporaryDirectory(prefix="veriloc-plot-") as tmp:
+                geo = build_geometry(cfg, tmp)   # the run's seed: the run's scene and paths
+            buildings = plots.map_buildings(geo)
+            for s in rows:
+                data = plots.read_results_csv(results_path(run_dir, s))
+                written.append(plots.plot_trajectory_map(
+                    data, geo.bs_pos, out_dir / f"{s}_map.{fmt}",
+                    adversary_xy=geo.adversary.pos[:, :2], title=s, buildings=buildings))
     return written

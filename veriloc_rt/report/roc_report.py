@@ -19,7 +19,7 @@ import numpy as np
 from ..detectors.outcomes import DETECTORS, TRP_DETECTORS
 from ..fileio import atomic_output
 from .detection import FUSED, ROC_COLUMNS, DetectionAnalysis
-from .plots import figure
+from .plots import drawn
 
 __all__ = ["LABELS", "ROC_TITLE", "format_detection", "plot_roc", "write_roc_csv"]
 
@@ -56,46 +56,56 @@ def write_roc_csv(path: str | Path, analysis: DetectionAnalysis) -> Path:
     return path
 
 
-def plot_roc(analysis: DetectionAnalysis, path: str | Path, title: str | None = None) -> Path:
+def plot_roc(analysis: DetectionAnalysis, path: str | Path | None = None,
+             title: str | None = None, ax=None):
     """One panel per attack: the ROC of each decision, its configured operating point as a
     marker, the AUC in the legend; uninformative detectors dashed, without an operating point
-    (at their configured threshold their rejections are no detections)."""
+    (at their configured threshold their rejections are no detections).
+
+    :param ax: one matplotlib ``Axes`` per attack, in ``analysis.metrics["attacks"]`` order (a
+        sequence when there are several), ``path`` unused, the Figure returned (as without
+        ``ax`` and ``path``); with ``path`` the figure is saved there and the path returned
+    """
     m = analysis.metrics
     attacks = list(m["attacks"])
+    return drawn(path, ax, title, lambda _, axes: _draw_roc(axes, analysis, attacks),
+                 ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
+                 margins_in=_MARGINS_IN, wspace_in=_WSPACE_IN)
+
+
+def _draw_roc(axes, analysis: DetectionAnalysis, attacks: list) -> None:
+    """The panels of :func:`plot_roc` on ``axes`` [1, len(attacks)]."""
+    m = analysis.metrics
     k = m["fusion"]["k"]
     singles = [d for d in (*DETECTORS, *TRP_DETECTORS) if d in m["detectors"]]
-    path = Path(path)
-    with figure(path, title, ncols=len(attacks), figsize=(4.2 * len(attacks), 4.4),
-                squeeze=False, margins_in=_MARGINS_IN, wspace_in=_WSPACE_IN) as (_, axes):
-        for ax, s in zip(axes[0], attacks):
-            for name in (*singles, *FUSED):
-                c = analysis.curves.get((name, s))
-                if c is None:
-                    continue
-                label, colour = LABELS[name]
-                label = label.replace("k-of-5", f"{k}-of-{len(singles)}")
-                ls = "--" if name in analysis.uninformative else "-"
-                ax.plot(c.false_alarm, c.attack_reject, ls, color=colour, lw=1.4,
-                        drawstyle="default",
-                        label=f"{label} {m['attacks'][s][name]['auc']:.3f}"
-                        + (" (uninf.)" if name in analysis.uninformative else ""))
-                if name not in analysis.uninformative:
-                    _, ba, ar = analysis.operating[(name, s)]
-                    ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
-            chance = np.linspace(0.0, 1.0, 201)
-            ax.plot(chance, chance, ":", color="0.6", lw=0.8)
-            # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
-            ax.set_xscale("symlog", linthresh=_LINEAR_FA, linscale=0.5)
-            ax.set_xticks([0.0, 0.01, 0.1, 1.0], ["0", "0.01", "0.1", "1"])
-            ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02),
-                   xlabel="false alarm = 1 - benign acceptance",
-                   ylabel="detection (attack rejected)")
-            # at its place (y = 1, above the axes): placed automatically, the title measures
-            # the axis' tick labels first, to clear any above the axes (there are none)
-            ax.set_title(s, y=1.0)
-            ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
-                      loc="lower right")
-    return path
+    for ax, s in zip(axes[0], attacks):
+        for name in (*singles, *FUSED):
+            c = analysis.curves.get((name, s))
+            if c is None:
+                continue
+            label, colour = LABELS[name]
+            label = label.replace("k-of-5", f"{k}-of-{len(singles)}")
+            ls = "--" if name in analysis.uninformative else "-"
+            ax.plot(c.false_alarm, c.attack_reject, ls, color=colour, lw=1.4,
+                    drawstyle="default",
+                    label=f"{label} {m['attacks'][s][name]['auc']:.3f}"
+                    + (" (uninf.)" if name in analysis.uninformative else ""))
+            if name not in analysis.uninformative:
+                _, ba, ar = analysis.operating[(name, s)]
+                ax.plot([1.0 - ba], [ar], "o", color=colour, ms=6, mec="k")
+        chance = np.linspace(0.0, 1.0, 201)
+        ax.plot(chance, chance, ":", color="0.6", lw=0.8)
+        # the operating points crowd near P_FA = 0: linear up to 1 %, logarithmic above
+        ax.set_xscale("symlog", linthresh=_LINEAR_FA, linscale=0.5)
+        ax.set_xticks([0.0, 0.01, 0.1, 1.0], ["0", "0.01", "0.1", "1"])
+        ax.set(xlim=(0.0, 1.0), ylim=(-0.02, 1.02),
+               xlabel="false alarm = 1 - benign acceptance",
+               ylabel="detection (attack rejected)")
+        # at its place (y = 1, above the axes): placed automatically, the title measures
+        # the axis' tick labels first, to clear any above the axes (there are none)
+        ax.set_title(s, y=1.0)
+        ax.legend(title="AUC (o: configured threshold)", fontsize=6.5, title_fontsize=7,
+                  loc="lower right")
 
 
 def format_detection(roc: dict) -> str:

@@ -6,26 +6,28 @@ from pathlib import Path
 
 import numpy as np
 
-from ..fileio import atomic_output
+from .plots import new_axes, save_figure
 
 
-def plot_top_view(geometry, path: str | Path, title: str | None = None,
-                  estimated_xy: np.ndarray | None = None) -> Path:
-    """Write a PNG top view of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
+def plot_top_view(geometry, path: str | Path | None = None, title: str | None = None,
+                  estimated_xy: np.ndarray | None = None, ax=None):
+    """A top view of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
 
     Emitted buildings are dark, buildings of the full grid that the crop left out are light,
     streets are white. Serving BSs are triangles (labelled with their id), the UE path is a
-    line coloured by time, the adversary's positions are orange dots.
+    line coloured by time (its colour bar beside the axes), the adversary's positions are
+    orange dots.
 
     :param estimated_xy: [num_points, 2] float64, m, optional estimated positions to overlay
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
+        it is without ``ax`` and ``path``; with ``path`` the figure is saved there (png, pdf or
+        svg by the suffix) and the path returned
     """
     import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection, PatchCollection
     from matplotlib.patches import Rectangle
 
-    fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
+    fig, ax = new_axes(ax, figsize=(8.0, 8.0))
     scene = geometry.scene
     bs, ue = geometry.bs_pos, geometry.ue.pos
     pts = np.concatenate([bs[:, :2], ue[:, :2]])
@@ -84,12 +86,6 @@ def plot_top_view(geometry, path: str | Path, title: str | None = None,
     # below the axes: covers nothing, and needs no search over the drawn buildings (which "best"
     # makes, slow on a city's mesh)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=8, frameon=False)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        with atomic_output(path) as tmp:
-            fig.savefig(tmp)
-    finally:
-        plt.close(fig)
-    return path
+    if path is None:
+        return fig
+    return save_figure(fig, path)

@@ -7,14 +7,14 @@ from pathlib import Path
 import numpy as np
 
 from ..propagation.pathloss_models import VALIDITY, RooftopGeometry
-from .plots import figure
+from .plots import drawn
 
 _STYLE = {"free_space": "0.35", "p1411": "tab:red", "cost231_wi": "tab:orange",
           "uma_nlos": "tab:green", "umi_nlos": "tab:purple"}
 
 
-def plot_validation_pathloss(res, path: str | Path, models: dict, model_db,
-                             title: str | None = None) -> None:
+def plot_validation_pathloss(res, path: str | Path | None, models: dict, model_db,
+                             title: str | None = None, ax=None):
     """Scatter of the traced links (NLoS dots, LoS triangles), per-bin traced medians with
     p10-p90 bars, and each model's curve at the scene's geometry (median phi and covered
     fraction of the links); a curve is dashed where an input other than the distance lies
@@ -25,6 +25,9 @@ def plot_validation_pathloss(res, path: str | Path, models: dict, model_db,
         (:data:`veriloc_rt.studies.validate.MODELS`)
     :param model_db: ``model_db(name, d_2d, phi, covered, fc, geo)``, a model's path loss, dB
         (:func:`veriloc_rt.studies.validate.model_db`)
+    :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
+        it is without ``ax`` and ``path``; with ``path`` the figure is saved there and the path
+        returned
     """
 
     inp, lk = res.inputs, res.links
@@ -36,8 +39,11 @@ def plot_validation_pathloss(res, path: str | Path, models: dict, model_db,
     hi = max(1.2 * float(d.max()), 2.0 * lo) if d.size else 1000.0
     grid = np.geomspace(lo, hi, 300)
     phi = np.full_like(grid, np.radians(inp["phi_deg_median"]))
-    with figure(path, title or f"path loss: ray tracing vs models (f = {fc / 1e9:g} GHz, "
-                 f"median phi {inp['phi_deg_median']:.0f} deg)", figsize=(9.0, 6.0)) as (fig, ax):
+    title = title or (f"path loss: ray tracing vs models (f = {fc / 1e9:g} GHz, median phi "
+                      f"{inp['phi_deg_median']:.0f} deg)")
+
+    def draw(_, axes):
+        ax = axes[0, 0]
         nl = has & ~los
         ax.scatter(d[nl], lk["pl_db"][nl], s=10, color="0.6", alpha=0.7,
                    label=f"traced NLoS links (n={int(nl.sum())})")
@@ -80,3 +86,5 @@ def plot_validation_pathloss(res, path: str | Path, models: dict, model_db,
         ax.set_ylabel("path loss, dB")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(loc="upper left", fontsize=7)
+
+    return drawn(path, ax, title, draw, figsize=(9.0, 6.0))

@@ -373,5 +373,6 @@ def _scenario_plots(out: Path, cfg: Config, geometry: Geometry, scenario: str) -
     data = plots.read_results_csv(out / f"{scenario}_results.csv")
     plots.plot_time_series(data, files[0], span if scenario != "none" else None, title=scenario)
     plots.plot_trajectory_map(data, geometry.bs_pos, files[1],
-                              adversary_xy=geometry.adversary.pos[:, :2], title=scenario)
+                              adversary_xy=geometry.adversary.pos[:, :2], title=scenario,
+                              buildings=plots.map_buildings(geometry))
     return files

@@ -28,31 +28,14 @@ def test_flag_of_any_realisation_hides_the_mean_attack_rate(tmp_path):
     cells = line.split("|")[0].split()[1:]
     assert cells[DETECTORS.index("DigSig")] == "uninf."
     assert cells[DETECTORS.index("HMAC")] == "100.0±0.0"
-    # the bar chart: heights and error bars as drawn, before the figure is cleared
-    seen = {}
-    real = plots.figure
+    # the bar chart: heights as drawn on the caller's axes
+    from matplotlib.figure import Figure
 
-    def keep(*a, **k):
-        cm = real(*a, **k)
-
-        class Wrap:
-            def __enter__(self):
-                seen["fa"] = cm.__enter__()
-                return seen["fa"]
-
-            def __exit__(self, *exc):
-                ax = seen["fa"][1]
-                seen["bars"] = {c.get_label(): [p.get_height() for p in c.patches]
-                                for c in ax.containers if hasattr(c, "patches")}
-                seen["texts"] = [t.get_text() for t in ax.texts]
-                return cm.__exit__(*exc)
-        return Wrap()
-
-    plots.figure = keep
-    try:
-        plots.plot_rates_ci(agg, tmp_path / "ci.png")
-    finally:
-        plots.figure = real
+    ax = Figure().subplots()
+    assert plots.plot_rates_ci(agg, ax=ax) is ax.figure
+    seen = {"bars": {c.get_label(): [p.get_height() for p in c.patches]
+                     for c in ax.containers if hasattr(c, "patches")},
+            "texts": [t.get_text() for t in ax.texts]}
     assert seen["bars"]["DigSig"] == [90.0, 0.0]   # none, fbs: no attack bar
     assert seen["bars"]["HMAC"] == [90.0, 100.0]
     assert seen["texts"].count("uninf.") == 1

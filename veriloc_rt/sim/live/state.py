@@ -344,15 +344,19 @@ class RunFolderState:
                        "following": path.name}
 
     def scene(self) -> dict:
-        """The map's fixed layer (:func:`scene_layer`), ``{"ready": False}`` until it exists;
-        of the realisation shown, for a Monte Carlo folder."""
-        mc = self._realisation(self._run_info())
+        """The map's fixed layer (:func:`scene_layer`), ``{"ready": False}`` until it exists,
+        ``{"ready": False, "run": False}`` while the folder holds no run (nothing to build: the
+        page says so instead of waiting); of the realisation shown, for a Monte Carlo folder."""
+        info = self._run_info()
+        if info is None:
+            return {"ready": False, "run": False, "version": self._scene_version}
+        mc = self._realisation(info)
         if mc is not None:
             out = mc[0].scene()
             out["version"] = f"{mc[1]['following']}:{out['version']}"
             return out
         with self._lock:
-            self._update_config(self._run_info())
+            self._update_config(info)
             out = dict(self._scene) if self._scene is not None else {"ready": False}
             out["version"] = self._scene_version
             return out

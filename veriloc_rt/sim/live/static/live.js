@@ -181,10 +181,16 @@ function drawMap() {
   ctx.clearRect(0, 0, w, h);
   canvas.dataset.drawn = "0";
   if (!scene || !scene.ready) {
+    // no run in the folder (the editor before its first run): nothing to build, nothing to wait on
+    const noRun = scene && scene.run === false;
+    canvas.dataset.state = noRun ? "no-run" : (scene && scene.error ? "error" : "building");
     ctx.fillStyle = "#667085"; ctx.font = "14px system-ui";
-    ctx.fillText(scene && scene.error ? "map not available: " + scene.error : "building the map…", 12, 24);
+    ctx.fillText(noRun ? "no run in this folder yet: the map appears when a run starts"
+                 : scene && scene.error ? "map not available: " + scene.error : "building the map…", 12, 24);
+    if (noRun) ctx.fillText("(the config editor, linked above, starts one)", 12, 44);
     return;
   }
+  canvas.dataset.state = "drawn";
   const T = mapTransform(w, h);
   if (!T) return;
   const {X, Y, k} = T;
