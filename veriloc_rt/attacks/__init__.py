@@ -1,4 +1,4 @@
-"""Layer 5, attacks: what the adversary transmits, on top of the physical layer.
+"""Layer 5 (beside detectors, independent of it), attacks: what the adversary transmits.
 
 The three threats as stages on arrays (:mod:`.fbs` false-BS selective spoofing, :mod:`.meaconing`
 relay, :mod:`.jamming` wideband noise), :mod:`.threats` (the threat registry: each scenario's
