@@ -165,9 +165,8 @@ class ScenarioRunner:
         #: the meaconer's noise, one draw per point and PRS mode shared by that mode's chains
         relay_noise = KeptWhiteNoise(1)
         for name, mode, plan, sec, rx in self._chain_configs(cfg):
-            rx = rx.scanned_for(self.max_doppler_hz)
-            chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
-                                     cfg.propagation.carrier_frequency_hz, keys, noise=noise)
+            chain = PositioningChain.from_config(cfg, keys, max_doppler_hz=self.max_doppler_hz,
+                                                 security=sec, receiver=rx, noise=noise)
             self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain, relay_noise))
         #: the detectors by name: the built-ins, then ``detectors.extra`` (their order)
         self.detectors: dict[str, Detector] = {
