@@ -1,11 +1,12 @@
 """The stateless detectors on one chain result: HMAC, DigSig, ABSA and the DL-UL handshake.
 
-One function, :func:`point_verdicts`, for every caller: a run (:mod:`veriloc_rt.sim.runner`,
-which adds the stateful Kalman tracker) and the benign diagnostics
-(:mod:`veriloc_rt.studies.diagnostics`). They differ on purpose only in the ABSA reference
-position, a parameter: the run's is the *last validated position* (the tracker's position after
-its last accepted fix, before the first one the current DL fix), as the paper's receiver would
-have it; the diagnostics' is the true UE position, to measure the AoA against the geometry.
+The four are the registered built-ins of :mod:`.registry` (a run calls them there, with the
+Kalman tracker and any plug-in, :mod:`veriloc_rt.sim.runner`); :func:`point_verdicts` runs them
+on one chain result for the benign diagnostics (:mod:`veriloc_rt.studies.diagnostics`). The two
+differ on purpose only in the ABSA reference position, a parameter: the run's is the *last
+validated position* (the tracker's position after its last accepted fix, before the first one
+the current DL fix), as the paper's receiver would have it; the diagnostics' is the true UE
+position, to measure the AoA against the geometry.
 The AoA's mirror ambiguity is resolved against the azimuth from that reference (paper Sec.
 "Angular-Based Source Authentication"; :func:`veriloc_rt.phy.receiver.aoa.resolve_ambiguity`).
 """
