@@ -47,6 +47,7 @@ from veriloc_rt.report.results import (CSV_COLUMNS, LINK_COLUMNS, TRP_COLUMNS,  
                                        TRP_DETECTOR_COLUMNS,
                                        scenario_metrics)
 from veriloc_rt.detectors.outcomes import DETECTORS, OUTCOMES, PointRow  # noqa: E402
+from veriloc_rt.sim.plugins import registered_choices  # noqa: E402
 from veriloc_rt.detectors.statistics import (STATISTICS, STAT_COLUMNS,  # noqa: E402
                                              TRP_STATISTICS)
 
@@ -133,6 +134,7 @@ def configuration_md() -> str:
     schema = config_schema()
     defaults = config_to_dict(Config())
     sections = list(_config_sections(schema, defaults))
+    registered = registered_choices()   # the package's own: gen_docs registers no plug-in
     class_docs = {k.rstrip("."): v for k, v in _class_docs(Config).items()}
     n_fields = sum(len(f) for _, _, f in sections)
     out = [HEADER.format(script=SCRIPT), "# Configuration reference", "",
@@ -168,8 +170,13 @@ def configuration_md() -> str:
         out += ["| field | type | default | allowed | description |",
                 "| --- | --- | --- | --- | --- |"]
         for fpath, s, default in fields:
+            allowed = _allowed(s)
+            if fpath in registered:   # names from the plug-in registries (docs/extending.md)
+                allowed = ("registered: " + ", ".join(_code(v) for v in registered[fpath])
+                           + " (when the run starts)" if registered[fpath] else
+                           "registered plug-ins (none built in)")
             out.append(f"| `{fpath}` | {_type_of(s)} | {_cell(_code(default))} | "
-                       f"{_cell(_allowed(s))} | {_cell(s.get('description', ''))} |")
+                       f"{_cell(allowed)} | {_cell(s.get('description', ''))} |")
     return "\n".join(out) + "\n"
 
 

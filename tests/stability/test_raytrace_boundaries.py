@@ -88,7 +88,7 @@ def _cir(tracer, ues, bs=BS):
     """CIR [num_ues, 3] of the links bs -> UE, traced from the UE side."""
     p = len(ues)
     raw = trace_links(tracer, np.repeat(bs[None], p, 0).reshape(-1, 3), np.repeat(ues, 3, 0),
-                      reciprocal=True, rays=FID.rays_per_source).project("V", "V")
+                      reciprocal=True).project("V", "V")
     elem = ula_element_positions(5, 0.5 * SPEED_OF_LIGHT / FC, 0.0)
     return build_cir(raw, (p, 3), np.tile([0, 1, 2], (p, 1)), np.repeat(bs[None], p, 0), ues,
                      np.zeros((p, 3, 3)), np.zeros((p, 3)), FC, elem, FID.max_paths_per_link)
@@ -150,7 +150,7 @@ def test_ground_reflection_vanishes_where_its_specular_point_leaves_the_scene(tr
     assert x_edge == pytest.approx(102.4)
     xs = np.array([95.0, 101.0, x_edge - 0.2, x_edge + 0.2, 104.0, 110.0, 1000.0])
     ues = np.stack([xs, np.full(xs.size, 5.0), np.full(xs.size, h_ue)], axis=1)
-    raw = tracer.trace(ues, np.repeat(bs[None], len(ues), 0), FID.rays_per_source)  # from the UEs
+    raw = tracer.trace(ues, np.repeat(bs[None], len(ues), 0))  # from the UEs
     for i, x in enumerate(xs):
         v = raw.valid[i]
         tau, inter = raw.tau[i][v], raw.interactions[i][v]

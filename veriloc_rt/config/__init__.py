@@ -28,7 +28,7 @@ from .fields import (check_value, from_dict, json_schema, param, patch_data, sec
 from .nr import NRConfig
 from .propagation import (POLARIZATIONS, ArrayConfig, MaterialsConfig, PolarizationConfig,
                           PropagationConfig, RayTracingConfig)
-from .run import SCENARIOS, RunConfig
+from .run import DEFAULT_SCENARIOS, RunConfig
 from .security import SecurityConfig
 from .world import SceneConfig, TopologyConfig, TrajectoryConfig
 

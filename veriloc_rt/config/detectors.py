@@ -120,10 +120,16 @@ class DetectorsConfig:
     min_auth_share: float = param(0.5, "runs with more than three TRPs: the AuthShare detector "
                                   "accepts a point when at least this share of its fix's TRPs "
                                   "had their tags verified", lo=0.0, hi=1.0)
+    extra: tuple[str, ...] = param((), "registered plug-in detectors (docs/extending.md) "
+                                   "evaluated at every point after the five built-in ones; "
+                                   "each adds its verdict column and '<name in lower case>_stat' "
+                                   "to the results CSVs (names checked when the run starts)")
 
     def validate(self, path: str = "detectors") -> None:
         if self.hmac.scheme != "hmac":
             raise bad_value(f"{path}.hmac.scheme", self.hmac.scheme, "'hmac'")
         if self.digsig.scheme != "ds":
             raise bad_value(f"{path}.digsig.scheme", self.digsig.scheme, "'ds'")
+        if len(set(self.extra)) != len(self.extra):
+            raise bad_value(f"{path}.extra", list(self.extra), "no repeated detector")
 

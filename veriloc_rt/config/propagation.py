@@ -154,8 +154,9 @@ class PropagationConfig:
 
     model: str = param("raytrace", "'raytrace' (Sionna RT on the scene), 'uma' (stochastic "
                        "TR 38.901 UMa: rooftop macro sites) or 'umi' (stochastic TR 38.901 "
-                       "UMi - Street Canyon: street-level sites below the roofs)",
-                       choices=("raytrace", "uma", "umi"))
+                       "UMi - Street Canyon: street-level sites below the roofs), or a "
+                       "registered plug-in model (docs/extending.md; names checked when the "
+                       "run starts)")
     carrier_frequency_hz: float = param(3.5e9, "carrier frequency", lo=0.5e9, hi=100e9)
     uma_mode: str = param("fast_fading", "UMa and UMi: 'fast_fading' (clusters and rays, "
                           "TR 38.901 7.5) or 'pathloss_only' (one direct path per link, as "

@@ -1,11 +1,12 @@
 """The stateless detectors on one chain result: HMAC, DigSig, ABSA and the DL-UL handshake.
 
-One function, :func:`point_verdicts`, for every caller: a run (:mod:`veriloc_rt.sim.runner`,
-which adds the stateful Kalman tracker) and the benign diagnostics
-(:mod:`veriloc_rt.studies.diagnostics`). They differ on purpose only in the ABSA reference
-position, a parameter: the run's is the *last validated position* (the tracker's position after
-its last accepted fix, before the first one the current DL fix), as the paper's receiver would
-have it; the diagnostics' is the true UE position, to measure the AoA against the geometry.
+The four are the registered built-ins of :mod:`.registry` (a run calls them there, with the
+Kalman tracker and any plug-in, :mod:`veriloc_rt.sim.runner`); :func:`point_verdicts` runs them
+on one chain result for the benign diagnostics (:mod:`veriloc_rt.studies.diagnostics`). The two
+differ on purpose only in the ABSA reference position, a parameter: the run's is the *last
+validated position* (the tracker's position after its last accepted fix, before the first one
+the current DL fix), as the paper's receiver would have it; the diagnostics' is the true UE
+position, to measure the AoA against the geometry.
 The AoA's mirror ambiguity is resolved against the azimuth from that reference (paper Sec.
 "Angular-Based Source Authentication"; :func:`veriloc_rt.phy.receiver.aoa.resolve_ambiguity`).
 """
@@ -18,26 +19,23 @@ import numpy as np
 
 from ..config.detectors import DetectorsConfig
 from ..phy.chain import ChainResult
-from .absa import ABSADetector
-from .handshake import HandshakeDetector
-from .tags import TagDetector
+from .registry import ABSA, DigSig, HMAC, Handshake, PointInput
 
 __all__ = ["PointDetectors", "point_statistics", "point_verdicts"]
 
 
 @dataclass(frozen=True, eq=False)
 class PointDetectors:
-    """The four stateless detectors of a run."""
+    """The four stateless built-in detectors of a run (:mod:`.registry`)."""
 
-    hmac: TagDetector
-    digsig: TagDetector
-    absa: ABSADetector
-    handshake: HandshakeDetector
+    hmac: HMAC
+    digsig: DigSig
+    absa: ABSA
+    handshake: Handshake
 
     @classmethod
     def from_config(cls, cfg: DetectorsConfig) -> "PointDetectors":
-        return cls(TagDetector(cfg.hmac), TagDetector(cfg.digsig), ABSADetector(cfg.absa),
-                   HandshakeDetector(cfg.handshake))
+        return cls(HMAC(cfg), DigSig(cfg), ABSA(cfg), Handshake(cfg))
 
 
 def point_verdicts(detectors: PointDetectors, result: ChainResult, bs_pos: np.ndarray,
@@ -60,19 +58,11 @@ def point_statistics(detectors: PointDetectors, result: ChainResult, bs_pos: np.
     """``{detector: (valid, stat)}``: :func:`point_verdicts` with each detector's statistic
     (the verdicts' ``stat``: tag fraction, ABSA deviation in deg, DL-UL distance in m), same
     arguments and order."""
-    h = detectors.hmac(result.tags_valid, result.detected)
-    v = {"HMAC": (h.valid, h.stat)}
+    x = PointInput(-1, float("nan"), result, ds, bs_pos, reference_position,
+                   np.full(2, np.nan), None, None)
+    v = {"HMAC": detectors.hmac(x)}
     if ds is not None:
-        d = detectors.digsig(ds.tags_valid, ds.detected)
-        v["DigSig"] = (d.valid, d.stat)
-    ref_az = detectors.absa.reference_azimuth(bs_pos, reference_position)
-    # no AoA: NaN; no reference: unresolvable, and ABSA does not check that BS anyway
-    az = np.array([float(a.resolve(r)[0]) if (a is not None and np.isfinite(r)) else np.nan
-                   for a, r in zip(result.aoa, ref_az)])
-    a = detectors.absa(az, bs_pos, reference_position=reference_position)
-    v["ABSA"] = (a.valid, a.stat)
-    ul = result.uplink.position if result.uplink is not None else None
-    hs = detectors.handshake(result.position.position if result.position.ok else None,
-                             ul.position if (ul is not None and ul.ok) else None)
-    v["Handshake"] = (hs.valid, hs.stat)
+        v["DigSig"] = detectors.digsig(x)
+    v["ABSA"] = detectors.absa(x)
+    v["Handshake"] = detectors.handshake(x)
     return v

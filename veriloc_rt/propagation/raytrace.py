@@ -179,10 +179,12 @@ class LinkTracer:
                                         self.fid.diffraction_coefficient)
         return self._tracer
 
-    def call_key(self, src: np.ndarray, dst: np.ndarray, pairs: np.ndarray, rays: int) -> str:
+    def call_key(self, src: np.ndarray, dst: np.ndarray, pairs: np.ndarray) -> str:
         """Cache key of one PathSolver call: a hash of the cache version, the scene's digest,
         the carrier, every fidelity field that changes the traced paths, the seed, the Sionna
-        RT / Mitsuba / Dr.Jit versions, the ray count and the call's positions and pairs.
+        RT / Mitsuba / Dr.Jit versions, the ray count (``rays_per_source``, hashed once more
+        after the rest, as the keys of earlier versions did) and the call's positions and
+        pairs.
 
         :param src, dst: [num_src, 3], [num_dst, 3] float64, m
         :param pairs: [num_links, 2] int (source, target) indices
@@ -195,14 +197,15 @@ class LinkTracer:
                                          "fc": self.fc, "fid": fid, "seed": self.seed,
                                          "versions": versions}, sort_keys=True)
         h = hashlib.sha256(self._base_key.encode())
-        h.update(str(rays).encode())
+        h.update(str(self.fid.rays_per_source).encode())
         for a in (_key(src), _key(dst), pairs.astype(np.int64)):
             h.update(np.ascontiguousarray(a).tobytes())
         return h.hexdigest()[:32]
 
-    def trace(self, src: np.ndarray, dst: np.ndarray, rays: int,
-              progress: Progress | None = None, workers: int = 1) -> RawPaths:
-        """Paths from ``src[i]`` (Sionna source) to ``dst[i]`` (Sionna target) for every i.
+    def trace(self, src: np.ndarray, dst: np.ndarray, progress: Progress | None = None,
+              workers: int = 1) -> RawPaths:
+        """Paths from ``src[i]`` (Sionna source) to ``dst[i]`` (Sionna target) for every i,
+        ``fid.rays_per_source`` rays per source.
 
         :param src, dst: [num_links, 3] float64, m
         :param workers: processes tracing the calls the cache does not hold, when they hold at
@@ -218,7 +221,7 @@ class LinkTracer:
         pair_first, pair_inv = _unique_rows(pair_keys)
         u_src, u_dst = src_id[pair_first], dst_id[pair_first]
         order = np.lexsort((u_dst, u_src))
-        per_pair = max(self.fid.max_depth, 1) * rays
+        per_pair = max(self.fid.max_depth, 1) * self.fid.rays_per_source
         # one source per call where Sionna draws interactions at random (module docstring);
         # otherwise unwanted pairs cost little (their candidates are dropped before they are
         # refined), so point-to-point links share calls too
@@ -245,7 +248,7 @@ class LinkTracer:
             cd, cd_inv = np.unique(u_dst[links], return_inverse=True)
             pairs = np.stack([cs_inv.ravel(), cd_inv.ravel()], axis=1)
             s_pos, d_pos = src[src_first[cs]], dst[dst_first[cd]]
-            key = self.call_key(s_pos, d_pos, pairs, rays) if self.cache_dir else None
+            key = self.call_key(s_pos, d_pos, pairs) if self.cache_dir else None
             cached = self._cached(key, len(pairs))
             if cached is not None:
                 finish(links, cached)
@@ -254,7 +257,7 @@ class LinkTracer:
         procs = min(workers, len(todo)) \
             if sum(len(t[3]) for t in todo) >= PARALLEL_MIN_LINKS else 1
         self.stats["processes"] = max(procs, self.stats.get("processes", 1))
-        jobs = [(s_pos, d_pos, pairs, rays) for _, s_pos, d_pos, pairs, _ in todo]
+        jobs = [(s_pos, d_pos, pairs) for _, s_pos, d_pos, pairs, _ in todo]
         computed = (_trace_in_processes(self, jobs, procs) if procs > 1
                     else ((k, *self._compute(*job)) for k, job in enumerate(jobs)))
         for k, raw, seconds in computed:
@@ -277,13 +280,13 @@ class LinkTracer:
             self.stats["cache_hits"] += 1
         return cached
 
-    def _compute(self, s_pos: np.ndarray, d_pos: np.ndarray, pairs: np.ndarray,
-                 rays: int) -> tuple[RawPaths, float]:
+    def _compute(self, s_pos: np.ndarray, d_pos: np.ndarray,
+                 pairs: np.ndarray) -> tuple[RawPaths, float]:
         """One PathSolver call, traced here. -> (paths, seconds)"""
         t0 = time.perf_counter()
         tracer = self.sionna_tracer()
         tracer.max_paths_per_src = min(self.fid.max_candidates_per_source * len(d_pos), 10**6)
-        raw = tracer.trace(s_pos, d_pos, self.fid, rays, pairs=pairs)
+        raw = tracer.trace(s_pos, d_pos, self.fid, pairs=pairs)
         return raw, time.perf_counter() - t0
 
 
@@ -434,16 +437,17 @@ def _take(raw: RawPaths, idx: np.ndarray) -> RawPaths:
 
 
 def trace_links(tracer: LinkTracer, tx: np.ndarray, rx: np.ndarray, reciprocal: bool,
-                rays: int, progress: Progress | None = None, workers: int = 1) -> RawPaths:
-    """Physical tx -> rx links; with ``reciprocal`` the rays start at the receiver.
+                progress: Progress | None = None, workers: int = 1) -> RawPaths:
+    """Physical tx -> rx links; with ``reciprocal`` the rays start at the receiver (the
+    tracer's ``fid.rays_per_source`` rays per source).
 
     :returns: RawPaths in the physical orientation: ``theta_r/phi_r`` at the receiver,
         ``theta_t/phi_t`` at the transmitter, ``a`` indexed (receiver port, transmitter port)
         (reversed paths: the transposed polarimetric matrix, Lorentz reciprocity)
     """
     if not reciprocal:
-        return tracer.trace(tx, rx, rays, progress, workers)
-    rev = tracer.trace(rx, tx, rays, progress, workers)
+        return tracer.trace(tx, rx, progress, workers)
+    rev = tracer.trace(rx, tx, progress, workers)
     return RawPaths(tau=rev.tau, a=np.swapaxes(rev.a, 2, 3), theta_r=rev.theta_t, phi_r=rev.phi_t,
                     theta_t=rev.theta_r, phi_t=rev.phi_r,
                     interactions=_reverse_interactions(rev.interactions), valid=rev.valid)
@@ -545,7 +549,7 @@ def trace(geometry, cfg: PropagationConfig, seed: int, progress: Progress | None
     total = len(tx_links)
     cb = (lambda done, _n: progress(done, total)) if progress else None
     t0 = time.perf_counter()
-    raw = trace_links(tracer, tx_links, rx_links, recip, fid.rays_per_source, cb, workers)
+    raw = trace_links(tracer, tx_links, rx_links, recip, cb, workers)
     # antenna polarizations in the physical direction (receiver port, transmitter port)
     pol = fid.polarization
     bs_p, ue_p, adv_p = pol.bs, pol.ue, pol.adversary_polarization()

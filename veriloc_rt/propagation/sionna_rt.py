@@ -189,8 +189,9 @@ class SionnaTracer:
         return self._edge_solvers[key]
 
     def trace(self, tx_pos: np.ndarray, rx_pos: np.ndarray, fid: RayTracingConfig,
-              rays_per_source: int, pairs: np.ndarray | None = None) -> RawPaths:
-        """Trace every transmitter to every receiver in one PathSolver call.
+              pairs: np.ndarray | None = None) -> RawPaths:
+        """Trace every transmitter to every receiver in one PathSolver call, launching
+        ``fid.rays_per_source`` rays per source.
 
         :param tx_pos: [num_tx, 3] float64, m; rx_pos: [num_rx, 3] float64, m
         :param pairs: [num_links, 2] int (tx, rx) indices to return; default all tx x rx pairs
@@ -214,7 +215,7 @@ class SionnaTracer:
         enumerated = fid.edge_candidates != "sampled" and fid.diffraction and fid.max_depth >= 1
         self._wanted.links = pairs
         paths = self.solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=self.max_paths_per_src,
-                            samples_per_src=rays_per_source, synthetic_array=True, los=fid.los,
+                            samples_per_src=fid.rays_per_source, synthetic_array=True, los=fid.los,
                             specular_reflection=fid.specular_reflection,
                             diffuse_reflection=fid.diffuse_reflection,
                             refraction=fid.refraction, diffraction=sampled_diffraction(fid),
@@ -224,7 +225,7 @@ class SionnaTracer:
             solver, generator = self._edge_solver(fid)
             generator.links = pairs
             paths = solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=10**9,
-                           samples_per_src=rays_per_source, synthetic_array=True, los=False,
+                           samples_per_src=fid.rays_per_source, synthetic_array=True, los=False,
                            specular_reflection=True, diffuse_reflection=False,
                            refraction=False, diffraction=True, seed=self.seed)
             self.last_num_edge_candidates = generator.last_num_candidates

@@ -20,6 +20,7 @@ import numpy as np
 from veriloc_rt.errors import InputError, bad_value
 from veriloc_rt.fileio import atomic_output
 
+from ..attacks.threats import scenario_labels
 from ..detectors.outcomes import DETECTORS, OUTCOMES
 from .results import CSV_COLUMNS
 
@@ -29,8 +30,7 @@ COLUMNS = CSV_COLUMNS
 STR_COLUMNS = ("outcome", "outcome_enc", "bs_excluded")
 INT_COLUMNS = ("index", "bs_heard", "bs_used")
 
-_SCENARIO_LABELS = {"none": "No Attack", "fbs": "FBS", "meaconing": "Meaconing",
-                    "jamming": "Jamming"}
+_SCENARIO_LABELS = scenario_labels()   # the threat registry's, at import: the built-ins
 _DETECTOR_STYLE = {  # display label, colour (the paper's pgfplots colours)
     "HMAC": ("HMAC", (0.0, 0.0, 0.6)), "DigSig": ("DigSig", (0.7, 0.0, 0.0)),
     "ABSA": ("ABSA", (0.3, 0.65, 0.65)), "Handshake": ("Handshake", (1.0, 0.6, 0.2)),

@@ -35,7 +35,7 @@ from ..detectors.outcomes import DETECTORS, OUTCOMES, TRP_DETECTORS, PointRow
 from ..detectors.statistics import STAT_COLUMNS, TRP_STAT_COLUMNS
 from ..errors import short_repr
 
-__all__ = ["CSV_COLUMNS", "TRP_COLUMNS", "TRP_DETECTOR_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
+__all__ = ["CSV_COLUMNS", "extra_columns", "TRP_COLUMNS", "TRP_DETECTOR_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
            "parse_rows", "detectors_of", "scenario_metrics", "results_path", "links_path"]
 
 CSV_COLUMNS = ("Time", *DETECTORS, "x_true", "y_true", "x_est", "y_est", "error_m", "outcome",
@@ -48,6 +48,14 @@ TRP_COLUMNS = ("bs_heard", "bs_used", "bs_excluded", "fix_cov_xx", "fix_cov_xy",
 #: the :data:`~veriloc_rt.detectors.outcomes.TRP_DETECTORS`' verdicts and statistics, after
 #: :data:`TRP_COLUMNS` in the same runs
 TRP_DETECTOR_COLUMNS = (*TRP_DETECTORS, *TRP_STAT_COLUMNS)
+
+
+def extra_columns(extra: tuple[str, ...]) -> tuple[str, ...]:
+    """The columns the plug-in detectors ``extra`` (``detectors.extra``) append to each row,
+    after every other: their verdicts, then their statistics ``<name in lower case>_stat``."""
+    return (*extra, *(f"{d.lower()}_stat" for d in extra))
+
+
 #: columns of ``<scenario>_links.csv``: one row per point and TRP
 LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
                 "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
@@ -102,9 +110,15 @@ def _trp_fields(r: PointRow) -> list[str]:
             + [_f(r.stats.get(d)) for d in TRP_DETECTORS])
 
 
-def fields_to_row(f: dict) -> PointRow:
+def _extra_fields(r: PointRow, extra: tuple[str, ...]) -> list[str]:
+    return ([str(int(bool(r.verdicts[d]))) for d in extra]
+            + [_f(r.stats.get(d)) for d in extra])
+
+
+def fields_to_row(f: dict, extra: tuple[str, ...] = ()) -> PointRow:
+    """The row of a CSV line's fields ``f`` (``extra``: the plug-in detectors' names)."""
     enc = f["outcome_enc"] != ""
-    return PointRow(
+    row = PointRow(
         index=int(f["index"]), time_s=float(f["Time"]), attack=f["attack"] == "1",
         verdicts={d: f[d] == "1" for d in DETECTORS + TRP_DETECTORS if f.get(d, "") != ""},
         true_xy=np.array([_p(f["x_true"]), _p(f["y_true"])]),
@@ -122,6 +136,10 @@ def fields_to_row(f: dict) -> PointRow:
                  if f.get("fix_cov_xx", "") != "" else None),
         auth=((_p(f["auth_share"]), np.array([_p(f["x_est_auth"]), _p(f["y_est_auth"])]))
               if "auth_share" in f else None))
+    for d in extra:
+        row.verdicts[d] = f[d] == "1"
+        row.stats[d] = _p(f[f"{d.lower()}_stat"])
+    return row
 
 
 def read_rows(path: str | Path) -> list[PointRow]:
@@ -141,9 +159,12 @@ def parse_rows(text: str, path: str | Path = "results CSV") -> list[PointRow]:
         text = text[: text.rfind("\n") + 1]
     reader = csv.DictReader(io.StringIO(text, newline=""))
     try:
-        if tuple(reader.fieldnames or ()) not in (
-                CSV_COLUMNS, CSV_COLUMNS + TRP_COLUMNS,
-                CSV_COLUMNS + TRP_COLUMNS + TRP_DETECTOR_COLUMNS):
+        header = tuple(reader.fieldnames or ())
+        base = [b for b in (CSV_COLUMNS + TRP_COLUMNS + TRP_DETECTOR_COLUMNS,
+                            CSV_COLUMNS + TRP_COLUMNS, CSV_COLUMNS) if header[:len(b)] == b]
+        rest = header[len(base[0]):] if base else ()
+        extra = rest[:len(rest) // 2]
+        if not base or rest != extra_columns(extra):
             raise ValueError(f"header {short_repr(reader.fieldnames)} is not the results "
                              "CSV's")
         rows = []
@@ -152,7 +173,7 @@ def parse_rows(text: str, path: str | Path = "results CSV") -> list[PointRow]:
                 raise ValueError(f"line {reader.line_num}: {len(f) - (None in f)} fields "
                                  f"(of {len(reader.fieldnames)})")
             try:
-                rows.append(fields_to_row(f))
+                rows.append(fields_to_row(f, extra))
             except (ValueError, KeyError) as exc:
                 raise ValueError(f"line {reader.line_num}: {exc}") from None
     except csv.Error as exc:
@@ -182,17 +203,22 @@ class ResultsWriter:
         first, which also drops a torn last line (the links file keeps these points' lines)
     :param trps: append :data:`TRP_COLUMNS` and :data:`TRP_DETECTOR_COLUMNS` to every row
         (runs with more than three TRPs)
+    :param extra: the plug-in detectors (``detectors.extra``), whose :func:`extra_columns` go
+        last
     """
 
-    def __init__(self, path: str | Path, keep: list[PointRow] | None = None, trps: bool = False):
+    def __init__(self, path: str | Path, keep: list[PointRow] | None = None, trps: bool = False,
+                 extra: tuple[str, ...] = ()):
         self.path = Path(path)
         self.trps = bool(trps)
+        self.extra = tuple(extra)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.links_path = self.path.with_name(self.path.name.replace("_results.csv", "_links.csv"))
         old_links = _kept_lines(self.links_path, {r.index for r in keep or ()})
         with atomic_output(self.path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh, lineterminator="\n")
-            w.writerow(CSV_COLUMNS + (TRP_COLUMNS + TRP_DETECTOR_COLUMNS if self.trps else ()))
+            w.writerow(CSV_COLUMNS + (TRP_COLUMNS + TRP_DETECTOR_COLUMNS if self.trps else ())
+                       + extra_columns(self.extra))
             for r in keep or ():
                 w.writerow(self._fields(r))
         with atomic_output(self.links_path) as tmp, open(tmp, "w", newline="") as fh:
@@ -207,7 +233,8 @@ class ResultsWriter:
         self._lw = csv.writer(self._lh, lineterminator="\n")
 
     def _fields(self, r: PointRow) -> list[str]:
-        return row_to_fields(r) + (_trp_fields(r) if self.trps else [])
+        return (row_to_fields(r) + (_trp_fields(r) if self.trps else [])
+                + _extra_fields(r, self.extra))
 
     def write(self, row: PointRow) -> None:
         """Append ``row`` and its per-TRP links (flushed). A failed write (a full disk) leaves
@@ -279,6 +306,9 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
 
 def detectors_of(rows: list[PointRow]) -> tuple[str, ...]:
     """The detectors every row has a verdict of: :data:`DETECTORS`, then the
-    :data:`TRP_DETECTORS` when every row has them (runs with more than three TRPs)."""
-    return DETECTORS + tuple(d for d in TRP_DETECTORS
+    :data:`TRP_DETECTORS` when every row has them (runs with more than three TRPs), then the
+    plug-in detectors every row has."""
+    known = DETECTORS + TRP_DETECTORS
+    extra = tuple(d for d in (rows[0].verdicts if rows else ()) if d not in known)
+    return DETECTORS + tuple(d for d in TRP_DETECTORS + extra
                              if rows and all(d in r.verdicts for r in rows))

@@ -1,4 +1,4 @@
-"""Layer 8, simulation: a whole run over the trajectory.
+"""Layer 7, simulation: a whole run over the trajectory.
 
 :mod:`.checks` (the input checks that need the geometry, before any tracing),
 :mod:`.runner` (one scenario point by point: chains, adversary, detectors, outcome),

@@ -22,6 +22,7 @@ from ..config.world import itu_material_problem
 from ..errors import InputError
 from ..phy.security.keys import load_keys
 from ..world.geometry import Geometry, build_geometry
+from .plugins import check_plugin_names
 from ..world.scene.export import scene_itu_materials
 from ..world.scene.osm import OSM_MATERIALS
 
@@ -124,6 +125,7 @@ def check_inputs(cfg: Config, scene_dir: str | Path) -> Geometry:
     :param scene_dir: where the canyon's XML + PLY files are written
     :returns: the run's geometry
     """
+    check_plugin_names(cfg)
     geometry = build_geometry(cfg, scene_dir)
     check_run_inputs(cfg, geometry)
     return geometry

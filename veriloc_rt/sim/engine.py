@@ -33,8 +33,8 @@ from ..config import Config
 from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import read_text
-from ..propagation.raytrace import Propagation, trace
-from ..propagation.stochastic import STOCHASTIC_MODELS, stochastic_propagation
+from ..propagation.models import PROPAGATION_REGISTRY
+from ..propagation.raytrace import Propagation
 from ..report import plots
 from ..report.detection import analyse_detection
 from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
@@ -48,6 +48,7 @@ from .executors import DaskChains, ForkPool, LocalChains, check_workers, schedul
 from .chain_store import ChainStore, config_digest
 from .run_folder import (CHAIN_FILE, MAX_RESULTS_BYTES, check_fresh, check_resume,
                          clear_run_files, locked, mark_stopped, run_keys, write_run_json)
+from .plugins import check_plugin_names
 from .progress import progress_callback
 from .runner import ScenarioRunner
 
@@ -76,20 +77,21 @@ class Results:
 def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | None = None,
                         cache_dir: str | Path | None = "default",
                         workers: int = 1) -> Propagation:
-    """CIRs of every link, from the configured model (ray tracing in up to ``workers``
-    processes).
+    """CIRs of every link, from the model ``propagation.model`` names
+    (:data:`~veriloc_rt.propagation.models.PROPAGATION_REGISTRY`; ray tracing in up to
+    ``workers`` processes).
 
     Ray tracing traces the adversary's links (BS -> adversary, adversary -> UE) only where the
     run uses them, the attack window of an attack scenario: the adversary -> UE links are
     point-to-point, batch poorly, and were half the tracing time of the paper run when traced at
     every point. (UMa draws them everywhere: free, and the draws stay as they were.)
     """
-    if cfg.propagation.model in STOCHASTIC_MODELS:
-        return stochastic_propagation(geometry, cfg.propagation, cfg.seed)
+    model = PROPAGATION_REGISTRY.get(cfg.propagation.model)()
     attacks = any(s != "none" for s in cfg.run.scenarios)
     window = cfg.run.attack_points(geometry.num_points) & attacks
-    cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None
-    return trace(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
+    stage = "ray tracing" if model.traces else "propagation"
+    cb = (lambda d, n: progress(stage, d, n)) if progress else None
+    return model(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
                  adversary_points=window, workers=workers)
 
 
@@ -152,6 +154,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
         or results CSV on resume)
     """
     check_workers(workers, scheduler)
+    check_plugin_names(cfg)   # before anything is touched
     bar = progress if progress is True else None
     progress = progress_callback(progress)
     if bar is not None:
@@ -314,7 +317,8 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
             runner.replay(done)
             log.info("%s: resuming after %d of %d points", scenario, len(done), n)
         writer = (ResultsWriter(results_path(out, scenario), keep=done,
-                                trps=cfg.trp_outputs) if out else None)
+                                trps=cfg.trp_outputs, extra=cfg.detectors.extra)
+                  if out else None)
         prev = done[-1].index if done else None
         todo = [i for i in range(len(done), n) if runner.needs_chains(scenario, i)]
         ahead = (pool or LocalChains(runner)).imap(scenario, todo)

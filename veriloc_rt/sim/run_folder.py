@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Iterator
 
 from ..config import Config, config_to_dict
-from ..config.run import SCENARIOS
+from ..attacks.threats import scenario_names
 from ..errors import InputError, short_repr
 from ..fileio import TMP_MARK, atomic_write_text, json_text
 from ..inputs import decode_text, read_bytes
@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 __all__ = ["package_version", "package_versions", "run_keys", "same_config", "check_resume",
            "check_fresh", "check_run_files", "clear_run_files", "locked", "write_run_json",
            "mark_stopped", "read_run_json", "owner_status", "run_is_alive", "finished_points", "LOCK_FILE", "OWNER_FILE",
-           "CHAIN_FILE", "RUN_FILES", "MAX_RUN_JSON_BYTES"]
+           "CHAIN_FILE", "RUN_FILES", "run_files", "MAX_RUN_JSON_BYTES"]
 
 #: the lock of a run folder (held by the run writing into it; left in place after a run)
 LOCK_FILE = ".veriloc-run.lock"
@@ -50,13 +50,20 @@ OWNER_FILE = ".veriloc-run.owner"
 #: the chain results a resumed run reuses (:mod:`~veriloc_rt.sim.chain_store`)
 CHAIN_FILE = "chains.bin"
 #: files a run writes into its folder besides ``scene/`` (a new run replaces them all)
-RUN_FILES = ("run.json", "metrics.json", "propagation_summary.json", CHAIN_FILE, "outcomes.png",
-             "detection_rates.png", "scene_top_view.png", "montecarlo.csv",
-             "montecarlo_detection_rates.png", "roc.csv", "roc.png",
-             *(f"cir_{links}.npz" for links in ("bs_to_ue", "bs_to_adversary",
-                                                "adversary_to_ue")),
-             *(f"{s}_{kind}" for s in SCENARIOS
-               for kind in ("results.csv", "links.csv", "timeseries.png", "map.png")))
+def run_files() -> tuple[str, ...]:
+    """The files a run writes into its folder besides ``scene/``, for every scenario
+    registered now (``'none'`` and each threat of the threat registry, plug-ins included)."""
+    return ("run.json", "metrics.json", "propagation_summary.json", CHAIN_FILE, "outcomes.png",
+            "detection_rates.png", "scene_top_view.png", "montecarlo.csv",
+            "montecarlo_detection_rates.png", "roc.csv", "roc.png",
+            *(f"cir_{links}.npz" for links in ("bs_to_ue", "bs_to_adversary",
+                                               "adversary_to_ue")),
+            *(f"{s}_{kind}" for s in scenario_names()
+              for kind in ("results.csv", "links.csv", "timeseries.png", "map.png")))
+
+
+#: :func:`run_files` of the built-in scenarios
+RUN_FILES = run_files()
 
 #: distributions whose versions ``run.json`` records
 VERSIONED = ("veriloc-rt", "sionna-rt", "mitsuba", "drjit", "numpy", "scipy", "trimesh",
@@ -124,7 +131,7 @@ def check_run_files(out: Path) -> None:
     (:data:`RUN_FILES`, the lock and owner files) exists and is not a regular file: reading a
     FIFO waits for a writer for ever, a device may never end, a folder cannot be replaced.
     Checked before anything in ``out`` is read, for a new and a resumed run."""
-    _check_regular(out, RUN_FILES, "a run reads and replaces it")
+    _check_regular(out, run_files(), "a run reads and replaces it")
     _check_regular(out, (LOCK_FILE, OWNER_FILE), "a run's lock")
     scene = out / "scene"
     if scene.exists() and not scene.is_dir():
@@ -248,7 +255,7 @@ def clear_run_files(out: Path) -> None:
     """Remove the files of an earlier run (:data:`RUN_FILES`) from ``out``, so that a new
     run's folder holds nothing of the old one (a realisation's folder clears itself when it
     runs). Other files and folders stay."""
-    for name in RUN_FILES:
+    for name in run_files():
         (out / name).unlink(missing_ok=True)
 
 

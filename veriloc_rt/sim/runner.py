@@ -13,7 +13,8 @@ Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted`
    result in every scenario, so it is computed once per run and reused, and the standard-PRS and
    encrypted-PRS chains receive one thermal noise, drawn once:
    :class:`~veriloc_rt.phy.noise.KeptWhiteNoise`); the adversary's own draws come from
-   ``stream(seed, "adversary", scenario, mode, i)``;
+   the threat's stream (``Threat.rng``: ``stream(seed, "adversary", k, mode, i)``, k 1, 2, 3 for
+   fbs, meaconing, jamming);
 3. detectors (standard PRS only, as the paper evaluates them):
 
    * HMAC: :class:`TagDetector` on the chain's tag checks (``security.tag_scheme`` should be
@@ -23,8 +24,9 @@ Per point ``i`` and PRS mode (standard; encrypted when ``run.evaluate_encrypted`
    * ABSA: the AoA per BS, resolved against and compared with the azimuth from the *last
      validated position* (the Kalman tracker's position after its last accepted fix; before the
      first one, the current DL fix);
-   * Handshake: DL fix against UL fix (these four: :func:`~veriloc_rt.detectors.point.point_verdicts`);
-     Tracking: the Kalman tracker on the DL fix.
+   * Handshake: DL fix against UL fix; Tracking: the Kalman tracker on the DL fix (the five
+     registered in :mod:`~veriloc_rt.detectors.registry`), then the plug-in detectors named in
+     ``detectors.extra``, each on the point's :class:`~veriloc_rt.detectors.registry.PointInput`.
 
 4. outcome: ``success`` (fix ok and horizontal error <= ``run.success_threshold_m``),
    ``large_error`` (fix ok, error above), ``service_failure`` (no fix: fewer than 3 BSs heard or
@@ -45,8 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import Config
-from ..detectors import KalmanTracker, PointDetectors, point_statistics
-from ..detectors.outcomes import PointRow, outcome_of
+from ..detectors.registry import DETECTOR_REGISTRY, Detector, PointInput, Tracking
+from ..detectors.outcomes import DETECTORS, PointRow, outcome_of
 from ..detectors.statistics import auth_share_verdict, integrity_verdict
 from ..phy.chain import FIX_ONLY, FULL, STAGES, Adversary, ChainPlan, ChainResult, PositioningChain
 from ..phy.channel import Links
@@ -55,6 +57,7 @@ from ..phy.noise import KeptWhiteNoise
 from ..constants import SPEED_OF_LIGHT
 from ..rng import stream
 from ..attacks.adversary import AdversarySignal
+from ..attacks.threats import BENIGN, THREAT_REGISTRY
 
 log = logging.getLogger(__name__)
 
@@ -118,10 +121,11 @@ def channel_doppler_hz(cfg: Config, propagation) -> float:
     attack scenario, the adversary -> UE paths' plus, with meaconing, the relay's own receive
     Doppler (the relayed signal carries both shifts)."""
     d = propagation.bs_ue.max_doppler_hz()
-    scenarios = set(cfg.run.scenarios) - {"none"}
+    scenarios = set(cfg.run.scenarios) - {BENIGN}
     if scenarios:
         d = max(d, propagation.adv_ue.max_doppler_hz())
-    if "meaconing" in scenarios:   # per point: the extreme sums of a received and a sent shift
+    if any(THREAT_REGISTRY.get(s).relays for s in scenarios):
+        # a relay: per point, the extreme sums of a received and a sent shift
         rx, tx = propagation.bs_adv, propagation.adv_ue
 
         def extremes(c):   # [num_points] largest and smallest valid Doppler (-inf / inf: none)
@@ -161,18 +165,21 @@ class ScenarioRunner:
         #: the meaconer's noise, one draw per point and PRS mode shared by that mode's chains
         relay_noise = KeptWhiteNoise(1)
         for name, mode, plan, sec, rx in self._chain_configs(cfg):
-            rx = rx.scanned_for(self.max_doppler_hz)
-            chain = PositioningChain(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
-                                     cfg.propagation.carrier_frequency_hz, keys, noise=noise)
+            chain = PositioningChain.from_config(cfg, keys, max_doppler_hz=self.max_doppler_hz,
+                                                 security=sec, receiver=rx, noise=noise)
             self.roles[name] = ChainRole(name, chain, mode, plan, AdversarySignal(cfg, chain, relay_noise))
-        self.detectors = PointDetectors.from_config(cfg.detectors)
-        self.tracker = KalmanTracker(cfg.detectors.tracking)
+        #: the detectors by name: the built-ins, then ``detectors.extra`` (their order)
+        self.detectors: dict[str, Detector] = {
+            name: DETECTOR_REGISTRY.get(name, f"detectors.extra[{k - len(DETECTORS)}]"
+                                        ).from_config(cfg)
+            for k, name in enumerate(DETECTORS + cfg.detectors.extra)}
+        #: the stateful built-in: its last accepted position is ABSA's reference
+        self.tracking: Tracking = self.detectors["Tracking"]
         #: chain results by key: benign ones shared by the scenarios (common random numbers);
         #: attack points computed by a worker, used once
         self._results: dict[ChainKey, ChainResult] = {}
         #: seconds: adversary signals, chain calls (total and by stage, :data:`STAGES`), detectors
         self.timing = {"adversary": 0.0, "chain": 0.0, **dict.fromkeys(STAGES, 0.0), "detectors": 0.0}
-        self._last_valid: np.ndarray | None = None
         #: the last adversary signal, by (scenario, PRS mode, point)
         self._adversary_kept: tuple = (None, None)
 
@@ -192,28 +199,17 @@ class ScenarioRunner:
     # -- state -------------------------------------------------------------------------------
     def reset(self) -> None:
         """Fresh detector state for a new scenario."""
-        self.tracker.reset()
-        self._last_valid = None
-
-    def _track(self, est_xy: np.ndarray, dt: float | None,
-               cov: np.ndarray | None = None) -> tuple[bool, float]:
-        """(valid, stat) of the tracker on the DL fix ``est_xy`` (``cov``: its covariance,
-        used with ``detectors.tracking.measurement_noise`` 'fix_covariance')."""
-        z = est_xy if np.all(np.isfinite(est_xy)) else None
-        if self.cfg.detectors.tracking.measurement_noise == "fix_covariance" and cov is not None:
-            v = self.tracker(z, dt, cov)
-        else:
-            v = self.tracker(z, dt)
-        if v.accepted:
-            self._last_valid = v.position.copy()
-        return v.valid, v.stat
+        for d in self.detectors.values():
+            d.reset()
 
     def replay(self, rows: list[PointRow]) -> None:
         """Rebuild the detector state from saved rows (resume)."""
         self.reset()
         prev = None
         for r in rows:
-            self._track(r.est_xy, self._dt(prev, r.index), r.fix_cov)
+            dt = self._dt(prev, r.index)
+            for d in self.detectors.values():
+                d.replay(r, dt)
             prev = r.index
 
     def _dt(self, prev: int | None, i: int) -> float | None:
@@ -224,7 +220,7 @@ class ScenarioRunner:
 
     # -- chain results, local or from worker processes --------------------------------------
     def _attack(self, scenario: str, i: int) -> bool:
-        return scenario != "none" and bool(self.window[i])
+        return scenario != BENIGN and bool(self.window[i])
 
     def key(self, chain: str, scenario: str, i: int) -> ChainKey:
         """The cache key of chain ``chain``'s result at point ``i`` of ``scenario``."""
@@ -255,7 +251,7 @@ class ScenarioRunner:
         out = [scenario]
         if self.window[i] and scenario in self.cfg.run.scenarios:
             later = self.cfg.run.scenarios[self.cfg.run.scenarios.index(scenario) + 1:]
-            out += [s for s in later if s != "none"]
+            out += [s for s in later if s != BENIGN]
         return out
 
     def chain_work(self, scenario: str, i: int) -> int:
@@ -300,10 +296,11 @@ class ScenarioRunner:
             # stream alone, not on the chain: chains of one PRS mode (standard, DS-tagged) share
             # them; a relay's depends on the chain's frames
             ak = (scenario, role.prs_mode, i)
-            if scenario in ("fbs", "jamming") and self._adversary_kept[0] == ak:
+            threat = THREAT_REGISTRY.get(scenario)
+            if threat.shared_by_chains and self._adversary_kept[0] == ak:
                 sig = self._adversary_kept[1]
             else:
-                rng = stream(self.cfg.seed, "adversary", _SCEN[scenario], role.prs_mode, i)
+                rng = threat.rng(self.cfg.seed, role.prs_mode, i)
                 sig = role.adversary(scenario, i, self.frame0 + i, p.bs_ue, p.bs_adv,
                                      self.geo.adversary.pos[i], self.geo.ue.pos[i], rng, adv_ue=p.adv_ue)
                 self._adversary_kept = (ak, sig)
@@ -329,10 +326,12 @@ class ScenarioRunner:
         est, err, out = self._fix(res, true_xy)
         ds = self.chain_result("ds", scenario, i, res) if "ds" in self.roles else res
         t = time.perf_counter()
-        ref = self._last_valid if self._last_valid is not None else (est if np.all(np.isfinite(est)) else None)
-        v = point_statistics(self.detectors, res, self.prop.bs_ue.tx_pos[i], ref, ds)
+        last = self.tracking.last_valid
+        ref = last if last is not None else (est if np.all(np.isfinite(est)) else None)
         cov = res.position.covariance if res.position.ok else None
-        v["Tracking"] = self._track(est, self._dt(prev, i), cov)
+        x = PointInput(i, float(self.geo.ue.t[i]), res, ds, self.prop.bs_ue.tx_pos[i], ref, est,
+                       cov, self._dt(prev, i))
+        v = {name: det(x) for name, det in self.detectors.items()}
         self.timing["detectors"] += time.perf_counter() - t
         row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
                        {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
@@ -359,9 +358,6 @@ class ScenarioRunner:
         est = np.asarray(res.position.position[:2], dtype=float).copy()
         err = float(np.linalg.norm(est - true_xy))
         return est, err, outcome_of(True, err, self.cfg.run.success_threshold_m)
-
-
-_SCEN = {"none": 0, "fbs": 1, "meaconing": 2, "jamming": 3}
 
 
 def authenticated_fix(res: ChainResult, chain: PositioningChain, bs_ue, i: int

@@ -1,4 +1,4 @@
-"""Layer 9, studies: questions asked of the chain beyond a run.
+"""Layer 8, studies: questions asked of the chain beyond a run.
 
 :mod:`.bench` (fidelity against time), :mod:`.compare` (ray tracing against UMa),
 :mod:`.validate` (traced path loss against the published models), :mod:`.diagnostics`

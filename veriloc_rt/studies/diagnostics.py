@@ -127,10 +127,8 @@ def benign_chain(cfg: Config, geometry, bs_ue, keys, points, noise: str = "noise
         ofdm, slots = OFDM(cfg.nr), range(cfg.nr.slots_per_frame)
         dl_noise, ul_noise = GridNoise(ofdm, slots), GridNoise(ofdm, slots)
     # benign links only: the scan fitted to the BS -> UE paths' Doppler (the run's rule)
-    receiver = cfg.receiver.scanned_for(bs_ue.max_doppler_hz())
-    chain = PositioningChain(cfg.nr, cfg.security, cfg.channel, receiver,
-                             cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys,
-                             noise=dl_noise, uplink_noise=ul_noise)
+    chain = PositioningChain.from_config(cfg, keys, max_doppler_hz=bs_ue.max_doppler_hz(),
+                                         noise=dl_noise, uplink_noise=ul_noise)
     detectors = PointDetectors.from_config(cfg.detectors)
     n, b = len(points), chain.num_bs
     toa, az = np.full((n, b), np.nan), np.full((n, b), np.nan)

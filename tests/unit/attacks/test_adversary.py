@@ -52,7 +52,7 @@ def test_relay_agc_power_and_receive_gain(tmp_path):
     p = np.mean(np.abs(g0 * sig.unit) ** 2) * ofdm.num_subcarriers / ofdm.fft_size
     assert p == pytest.approx(float(dbm_to_watt(cfg.threats.meaconing.power_dbm)), rel=1e-9)
     assert sig.unit == pytest.approx(float(re_amplitude(dbm_to_watt(48.0), ofdm)))
-    sig.adv_noise_var = 0.0
+    sig.threat("meaconing").noise_var = 0.0
     clean = sig(*args, np.random.default_rng(0)).ravel()
     snr0 = _snr(g0.ravel(), clean)
     g10 = _relay(tmp_path, rx_antenna_gain_dbi=10.0)[2]

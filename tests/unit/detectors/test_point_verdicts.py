@@ -57,6 +57,6 @@ def test_absa_follows_the_reference_position(result):
     det = PointDetectors.from_config(DetectorsConfig())
     far = UE + np.array([0.0, 200.0, 0.0])
     shift = angle_difference(geometric_azimuth(BS, far), geometric_azimuth(BS, UE))
-    assert np.degrees(shift.max()) > det.absa.config.threshold_deg
+    assert np.degrees(shift.max()) > det.absa.absa.config.threshold_deg
     assert not point_verdicts(det, result, BS, far)["ABSA"]
     assert not point_verdicts(det, result, BS, None)["ABSA"]

@@ -37,9 +37,9 @@ def traced(tmp_path_factory):
     root = tmp_path_factory.mktemp("cache")
     xml = write_test_scene(root / "scene", {"ground": ground(),
                                             "block": boxes([[30, -20, 60, 0]], [20.0])})
-    fid = RayTracingConfig(max_depth=1, diffraction=False, refraction=False)
+    fid = RayTracingConfig(max_depth=1, diffraction=False, refraction=False, rays_per_source=RAYS)
     tracer = LinkTracer(xml, FC, fid, 1, root / "pristine")
-    ref = {k: tracer.trace(s, d, RAYS) for k, (s, d) in CALLS.items()}
+    ref = {k: tracer.trace(s, d) for k, (s, d) in CALLS.items()}
     files = sorted((root / "pristine" / "raytrace").glob("*.npz"))
     assert tracer.stats["calls"] == 2 and len(files) == 2
     return tracer, root / "pristine", ref
@@ -94,7 +94,7 @@ def test_a_damaged_entry_is_quarantined_and_traced_again(traced, tmp_path, caplo
     calls, hits = tracer.stats["calls"], tracer.stats["cache_hits"]
     s, d = CALLS["a"]
     with caplog.at_level(logging.WARNING):
-        got = tracer.trace(s, d, RAYS)
+        got = tracer.trace(s, d)
     assert tracer.stats["calls"] == calls + 1 and tracer.stats["cache_hits"] == hits
     assert "is damaged" in caplog.text and target.name in caplog.text
     assert len(list((cache / "raytrace" / "quarantine").iterdir())) == 1
@@ -103,7 +103,7 @@ def test_a_damaged_entry_is_quarantined_and_traced_again(traced, tmp_path, caplo
     np.testing.assert_allclose(got.tau[got.valid], want.tau[want.valid], rtol=RETRACE_RTOL)
     np.testing.assert_allclose(np.abs(got.a), np.abs(want.a), rtol=RETRACE_RTOL, atol=0)
     # the re-traced entry replaced it: the next look-up is a hit again
-    again = tracer.trace(s, d, RAYS)
+    again = tracer.trace(s, d)
     assert tracer.stats["calls"] == calls + 1 and tracer.stats["cache_hits"] == hits + 1
     assert np.array_equal(again.tau, got.tau)
 

@@ -89,7 +89,8 @@ def ground_tracer(make_tracer):
 
 def link(tracer, tx, rx, fid, rays=100_000):
     """Link 0's valid paths sorted by delay: tau, a [n, 2, 2], interactions."""
-    raw = tracer.trace(np.asarray(tx, float)[None], np.asarray(rx, float)[None], fid, rays)
+    raw = tracer.trace(np.asarray(tx, float)[None], np.asarray(rx, float)[None],
+                       dataclasses.replace(fid, rays_per_source=rays))
     v = raw.valid[0]
     o = np.argsort(raw.tau[0][v])
     return raw.tau[0][v][o], raw.a[0][v][o], raw.interactions[0][v][o]
@@ -221,8 +222,9 @@ def test_reciprocity_of_mixed_polarizations(street):
     reversed path's polarimetric matrix is the transpose (trace_links swaps the port axes)."""
     from veriloc_rt.propagation.raytrace import trace_links
 
-    f = trace_links(DirectTracer(street, SPEC2), BS[None], UE[None], reciprocal=False, rays=200_000)
-    r = trace_links(DirectTracer(street, SPEC2), BS[None], UE[None], reciprocal=True, rays=200_000)
+    spec = dataclasses.replace(SPEC2, rays_per_source=200_000)
+    f = trace_links(DirectTracer(street, spec), BS[None], UE[None], reciprocal=False)
+    r = trace_links(DirectTracer(street, spec), BS[None], UE[None], reciprocal=True)
     for rx_pol, tx_pol in (("H", "V"), ("V", "H"), ("+45", "V"), ("-45", "+45")):
         pf, pr = paths_of(f, rx_pol, tx_pol), paths_of(r, rx_pol, tx_pol)
         common = match_paths(pf, pr)
@@ -283,7 +285,7 @@ def test_cache_key_ignores_polarization_but_not_materials(tmp_path):
     src, dst, pairs = np.zeros((1, 3)), np.ones((1, 3)), np.zeros((1, 2), np.int64)
 
     def key(fid):
-        return LinkTracer(xml, FC, fid, 1, tmp_path).call_key(src, dst, pairs, 1000)
+        return LinkTracer(xml, FC, fid, 1, tmp_path).call_key(src, dst, pairs)
 
     base = RayTracingConfig()
     assert key(base) == key(dataclasses.replace(

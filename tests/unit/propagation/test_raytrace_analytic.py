@@ -6,6 +6,8 @@ with the ITU-R P.2040-3 (Table 3) permittivity model eta = a f^b - j c f^d / (2 
 f in GHz. Tolerances: Sionna RT computes in float32.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -71,7 +73,7 @@ def paths_of(raw, rx="V", tx="V"):
 def test_los_and_ground_reflection_match_two_ray_model(tracer_factory):
     tr = tracer_factory("ground", {"ground": ground()})
     tx, rx = np.array([3.0, -7.0, 10.0]), np.array([40.0, 25.0, 1.5])
-    p = paths_of(tr.trace(tx[None], rx[None], SPECULAR, 100_000))
+    p = paths_of(tr.trace(tx[None], rx[None], replace(SPECULAR, rays_per_source=100_000)))
     assert len(p["tau"]) == 2, "exactly LoS + one ground reflection"
     d_los = np.linalg.norm(tx - rx)
     img = rx * np.array([1, 1, -1])
@@ -101,7 +103,7 @@ def test_single_wall_reflection_matches_image_method(tracer_factory):
     # plane of incidence, so the vertical polarisation is TE (perpendicular)
     tr = tracer_factory("wall", {"wall": boxes([[-60, -10, 60, 0]], [20.0])})
     tx, rx = np.array([-20.0, 5.0, 5.0]), np.array([20.0, 5.0, 5.0])
-    p = paths_of(tr.trace(tx[None], rx[None], SPECULAR, 100_000))
+    p = paths_of(tr.trace(tx[None], rx[None], replace(SPECULAR, rays_per_source=100_000)))
     assert len(p["tau"]) == 2
     img = tx * np.array([1, -1, 1])
     d_los, d_ref = np.linalg.norm(tx - rx), np.linalg.norm(img - rx)
@@ -139,20 +141,21 @@ def street(tracer_factory):
 
 def test_batched_sources_match_one_source_per_call(street):
     """Reciprocal mode: many UE positions as sources in one call, each to all serving BSs."""
-    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False)
-    batched = street.trace(STREET_UES, STREET_BSS, fid, 20_000)
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False, rays_per_source=20_000)
+    batched = street.trace(STREET_UES, STREET_BSS, fid)
     for i in range(len(STREET_UES)):
-        single = street.trace(STREET_UES[i:i + 1], STREET_BSS, fid, 20_000)
+        single = street.trace(STREET_UES[i:i + 1], STREET_BSS, fid)
         for j in range(len(STREET_BSS)):
             _same_paths(batched, i * len(STREET_BSS) + j, single, j, f"link {i}->{j}")
 
 
 def test_batched_receivers_match_one_receiver_per_call(street):
     """Forward mode: one BS source, many UE receivers in one call."""
-    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False)
-    batched = street.trace(STREET_BSS[:1], STREET_UES, fid, 200_000)
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False,
+                           rays_per_source=200_000)
+    batched = street.trace(STREET_BSS[:1], STREET_UES, fid)
     for i in range(len(STREET_UES)):
-        single = street.trace(STREET_BSS[:1], STREET_UES[i:i + 1], fid, 200_000)
+        single = street.trace(STREET_BSS[:1], STREET_UES[i:i + 1], fid)
         _same_paths(batched, i, single, 0, f"receiver {i}")
 
 
@@ -163,10 +166,10 @@ class DirectTracer:
     def __init__(self, tr, fid):
         self.tr, self.fid = tr, fid
 
-    def trace(self, src, dst, rays, progress=None, workers=1):
+    def trace(self, src, dst, progress=None, workers=1):
         from veriloc_rt.propagation.sionna_rt import RawPaths
 
-        return RawPaths.concat([self.tr.trace(s[None], d[None], self.fid, rays)
+        return RawPaths.concat([self.tr.trace(s[None], d[None], self.fid)
                                 for s, d in zip(src, dst)])
 
 
@@ -193,8 +196,8 @@ def test_reciprocal_tracing_equals_forward_specular(tracer_factory):
     tr = tracer_factory("recip_spec", meshes)
     fid = RayTracingConfig(max_depth=2, diffraction=False, refraction=False)
     bs, ue = np.array([[1.0, 40.0, 8.0]]), np.array([[0.0, -8.0, 1.5]])  # wall bounces in reach
-    f = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=False, rays=200_000))
-    r = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=True, rays=200_000))
+    f = paths_of(trace_links(DirectTracer(tr, replace(fid, rays_per_source=200_000)), bs, ue, reciprocal=False))
+    r = paths_of(trace_links(DirectTracer(tr, replace(fid, rays_per_source=200_000)), bs, ue, reciprocal=True))
     assert len(f["tau"]) == len(r["tau"]) >= 3
     for i, j in match_paths(f, r):
         assert abs(f["a"][i] - r["a"][j]) <= 1e-3 * abs(f["a"][i])
@@ -212,8 +215,8 @@ def test_reciprocal_tracing_with_diffraction(tracer_factory):
     tr = tracer_factory("recip_diff", meshes)
     fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False)
     bs, ue = np.array([[140.0, 35.0, 25.0]]), np.array([[0.0, -8.0, 1.5]])
-    f = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=False, rays=400_000))
-    r = paths_of(trace_links(DirectTracer(tr, fid), bs, ue, reciprocal=True, rays=20_000))
+    f = paths_of(trace_links(DirectTracer(tr, replace(fid, rays_per_source=400_000)), bs, ue, reciprocal=False))
+    r = paths_of(trace_links(DirectTracer(tr, replace(fid, rays_per_source=20_000)), bs, ue, reciprocal=True))
     common = match_paths(f, r)
     assert len(common) == len(f["tau"]) >= 2, "every forward path is found from the UE side"
     for i, j in common:

@@ -235,8 +235,8 @@ def test_exhaustive_candidates_contain_the_sampled_diffraction_paths(tmp_path):
     tracer = SionnaTracer(write_test_scene(tmp_path, meshes), FC, seed=1)
     ue = np.array([[0.0, 0.7, 1.5]])
     bs = np.array([[20.0, 150.0, 25.0]])
-    sampled = tracer.trace(ue, bs, RayTracingConfig(edge_candidates="sampled"), 10**6)
-    exh = tracer.trace(ue, bs, RayTracingConfig(edge_candidates="exhaustive"), 10**3)
+    sampled = tracer.trace(ue, bs, RayTracingConfig(edge_candidates="sampled", rays_per_source=10**6))
+    exh = tracer.trace(ue, bs, RayTracingConfig(edge_candidates="exhaustive", rays_per_source=10**3))
     diffracted = sampled.valid[0] & np.any(sampled.interactions[0] == 8, axis=-1)
     assert diffracted.sum() >= 3
     p_s = np.sum(np.abs(sampled.a[0]) ** 2, axis=(1, 2))
@@ -268,11 +268,11 @@ def test_hopeless_candidates_are_rejected_by_the_image_method(tmp_path, monkeypa
     tracer = SionnaTracer(write_test_scene(tmp_path, meshes), FC, seed=1)
     ue = np.array([[0.0, 0.7, 1.5]])
     ends = np.array([[20.0, 150.0, 25.0], [35.0, -0.8, 1.5]])
-    fid = RayTracingConfig(edge_candidates="exhaustive")
-    kept = tracer.trace(ue, ends, fid, 10**3)
+    fid = RayTracingConfig(edge_candidates="exhaustive", rays_per_source=10**3)
+    kept = tracer.trace(ue, ends, fid)
     n_kept = tracer.last_num_edge_candidates
     monkeypatch.setattr(sp, "hopeless", lambda geo, plane, img, p: np.zeros(len(p), bool))
-    every = tracer.trace(ue, ends, fid, 10**3)
+    every = tracer.trace(ue, ends, fid)
     assert tracer.last_num_edge_candidates > n_kept
     for f in kept.FIELDS:
         np.testing.assert_array_equal(getattr(kept, f), getattr(every, f))

@@ -87,14 +87,14 @@ def test_a_links_paths_do_not_depend_on_the_other_links_traced(tmp_path, edge_ca
     tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed, None)
     tx = geo.bs_pos[geo.serving].reshape(-1, 3)
     rx = np.repeat(geo.ue.pos, 3, axis=0)
-    every = trace_links(tracer, tx, rx, True, fid.rays_per_source)
+    every = trace_links(tracer, tx, rx, True)
     sources = len(np.unique(geo.ue.pos.round(3), axis=0))
     if edge_candidates == "exhaustive":   # batched: the test compares batched with alone
         assert tracer.stats["calls"] < sources / 2
     else:
         assert tracer.stats["calls"] == sources
     for i in (0, geo.num_points // 2, geo.num_points - 1):
-        alone = trace_links(tracer, tx[3 * i:3 * i + 3], rx[3 * i:3 * i + 3], True, fid.rays_per_source)
+        alone = trace_links(tracer, tx[3 * i:3 * i + 3], rx[3 * i:3 * i + 3], True)
         for j in range(3):   # the valid paths (the padding follows the longest link traced)
             v, w = every.valid[3 * i + j], alone.valid[j]
             assert v.sum() == w.sum() > 0, (i, j)

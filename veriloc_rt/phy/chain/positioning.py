@@ -22,7 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...config import ArrayConfig
+from ...config import ArrayConfig, Config
 from ...config.channel import ChannelConfig, ReceiverConfig
 from ...config.nr import NRConfig
 from ...config.security import SecurityConfig
@@ -75,6 +75,24 @@ class PositioningChain:
     :param noise: the UE's noise source (default :class:`~veriloc_rt.phy.noise.WhiteNoise`)
     :param uplink_noise: the BSs' noise source for the uplink (default ``WhiteNoise``)
     """
+
+    @classmethod
+    def from_config(cls, cfg: Config, keys: Mapping[int, BSKeys] | None = None, *,
+                    max_doppler_hz: float, security: SecurityConfig | None = None,
+                    receiver: ReceiverConfig | None = None, noise: NoiseSource | None = None,
+                    uplink_noise: NoiseSource | None = None) -> "PositioningChain":
+        """The chain of a run's config: its ``nr``, ``channel``, UE array and carrier, and its
+        ``security`` and ``receiver`` unless given (a run's DS-tagged or encrypted chain), the
+        receiver's Doppler scan fitted to ``max_doppler_hz`` (``ReceiverConfig.scanned_for``:
+        the largest |Doppler| the UE receives). The one place a chain is built from a config
+        (:class:`~veriloc_rt.sim.runner.ScenarioRunner`,
+        :func:`~veriloc_rt.studies.diagnostics.benign_chain`).
+        """
+        sec = cfg.security if security is None else security
+        rx = (cfg.receiver if receiver is None else receiver).scanned_for(max_doppler_hz)
+        return cls(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
+                   cfg.propagation.carrier_frequency_hz, keys, noise=noise,
+                   uplink_noise=uplink_noise)
 
     def __init__(self, nr: NRConfig, security: SecurityConfig, channel: ChannelConfig,
                  receiver: ReceiverConfig, ue_array: ArrayConfig, carrier_frequency_hz: float,
