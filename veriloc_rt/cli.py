@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 
 # one BLAS thread: the chain's matrices are small, and multithreaded BLAS on them was measured
-# ~10x slower on a shared 2-core machine (scripts/bench_chain.py); set before numpy loads
+# ~10x slower on a shared 2-core machine (benchmarks/bench_chain.py); set before numpy loads
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 

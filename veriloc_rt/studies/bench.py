@@ -158,7 +158,7 @@ TIME_DECIMATION = 8
 #: front end (the shared per-RE noise reaches only the FFT windows)
 TIME_DOMAIN_PATCH = {"channel.time_decimation": TIME_DECIMATION, "channel.time_front_end": "ofdm"}
 #: the ray-tracing reference of the full sweep: the most complete setting of the convergence
-#: study (docs/convergence.md, scripts/bench_convergence.py): the exhaustive edge-diffraction
+#: study (docs/convergence.md, benchmarks/bench_convergence.py): the exhaustive edge-diffraction
 #: candidates together with 1e7 rays per source of Sionna's own, its sampled diffraction
 #: included ('both'), at depth 4 (a path of five
 #: interactions carries a few % of a link's power). Rays alone converge slowly: a strong path (a

@@ -11,7 +11,7 @@ the command, and the library's own ``run()`` time from ``metrics.json``, which l
 interpreter's start and the imports), the rows each scenario had at the kill, and whether the
 resumed folder's result CSVs equal the full run's byte for byte.
 
-    PYTHONPATH=$PWD .venv/bin/python scripts/bench_resume.py [--out DIR] [--kill-at 0.9]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_resume.py [--out DIR] [--kill-at 0.9]
         [--only uma ci-tiny] [--points N]
 
 Configs: the built-in default (the ray-traced canyon of ``veriloc-rt run``, 120 points), TR
