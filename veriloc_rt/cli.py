@@ -475,9 +475,10 @@ def cmd_plot(args) -> int:
 
 
 def cmd_diff(args) -> int:
-    from .report.postprocess import diff_runs
+    from .report.postprocess import EXACT, diff_runs
 
-    report = diff_runs(args.run_a, args.run_b, tuple(c for c in args.exact.split(",") if c))
+    exact = EXACT if args.exact is None else tuple(c for c in args.exact.split(",") if c)
+    report = diff_runs(args.run_a, args.run_b, exact)
     print("\n".join(report.lines))
     return 0 if report.ok else 1
 
@@ -669,15 +670,12 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--dpi", type=int, default=300, help="resolution of PNG figures, dots per "
                     "inch (default 300; the run writes 110)")
     pl.set_defaults(func=cmd_plot)
-    from .report.postprocess import EXACT
-
     df = sub.add_parser("diff", help="compare two run folders' results CSVs column by column "
                         "(exit 1 when an --exact column differs)")
     df.add_argument("run_a", help="a run's --out folder")
     df.add_argument("run_b", help="another run's --out folder")
-    df.add_argument("--exact", default=",".join(EXACT),
-                    help="comma-separated columns that must be identical (default: the "
-                    "decisions, outcomes, attack flag, index and time)")
+    df.add_argument("--exact", help="comma-separated columns that must be identical "
+                    "(default: the decisions, outcomes, attack flag, index and time)")
     df.set_defaults(func=cmd_diff)
     ro = sub.add_parser("roc", help="a finished run's detection analysis (ROC, AUC, fused "
                         "decisions) again, with detector settings overridden")
