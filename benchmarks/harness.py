@@ -9,7 +9,8 @@
   and its scene already loaded (loading is not tracing), :func:`timed_links` the traced paths
   of given links and their wall seconds;
 * :func:`timed_trace`: a run's propagation (``raytrace.trace``) on some points, no cache, with
-  its wall seconds (the fastest of a few identical traces when asked);
+  its wall seconds (the fastest of a few identical traces when asked): the package's own,
+  :func:`veriloc_rt.studies.timing.timed_trace`, which ``veriloc-rt bench`` times with;
 * :func:`scenario_runner`: a :class:`~veriloc_rt.sim.runner.ScenarioRunner` of a config (of
   the installed package or of a copy under another name, for A/B timings);
 * :func:`run_cli`: ``veriloc-rt run`` in its own process, its wall seconds and ``metrics.json``;
@@ -34,6 +35,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from veriloc_rt.studies.timing import timed_trace  # noqa: F401 - the benchmarks' too
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the file suffix of Dr.Jit's compiled LLVM kernels in its cache folder
@@ -91,25 +94,6 @@ def timed_links(tracer, tx, rx, fid=None):
     t0 = time.perf_counter()
     raw = trace_links(tracer, tx, rx, fid.direction == "reciprocal", fid.rays_per_source)
     return raw, time.perf_counter() - t0
-
-
-def timed_trace(geo, cfg, points=None, adversary: bool = True, repeats: int = 1,
-                cache_dir=None):
-    """(propagation, wall seconds) of ``raytrace.trace`` of ``cfg`` on ``geo``, only the links
-    of ``points`` (None: all; ``adversary`` False: no adversary links), the fastest of
-    ``repeats`` identical traces (the first also compiles the kernels; the trace is
-    deterministic, so every repeat gives the same paths)."""
-    from veriloc_rt.propagation.raytrace import trace
-
-    on = np.zeros(geo.num_points, dtype=bool)
-    on[_points(geo, points)] = True
-    best, prop = np.inf, None
-    for _ in range(max(1, repeats)):
-        t = time.perf_counter()
-        prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=cache_dir,
-                     adversary_points=on if adversary else np.zeros_like(on), ue_points=on)
-        best = min(best, time.perf_counter() - t)
-    return prop, best
 
 
 def scenario_runner(config: str | Path | None, points: int | None, work: Path,
