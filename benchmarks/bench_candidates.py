@@ -60,10 +60,7 @@ def compare(geo, ref_cfg: Config, base: Config, settings: list[str]) -> None:
     print("| --- | --- | --- | --- | --- | --- |")
     for s in settings:
         prop, dt = harness.timed_trace(geo, patched(base, s))
-        d = lm.link_deviation(lm.cir_link_arrays(prop.bs_ue, sel), lm.cir_link_arrays(ref.bs_ue, sel))
-        p = np.abs(d["power_dev_db"])
-        a = lm.link_deviation(lm.cir_link_arrays(prop.adv_ue, sel), lm.cir_link_arrays(ref.adv_ue, sel))
-        pa = np.abs(a["power_dev_db"])
+        _, p, pa = harness.power_deviation(prop, ref, sel)
         print(f"| {s} | {dt:.1f} | {100 * np.mean(p > 1):.1f} | {100 * np.mean(p > 3):.1f} | "
               f"{lm.quantile(p, 90):.2f} | {100 * np.mean(pa > 1):.1f} |", flush=True)
 

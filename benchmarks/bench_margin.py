@@ -50,10 +50,7 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for m in margins:
         prop, sel, dt, nb = runs[m]
-        d = lm.link_deviation(lm.cir_link_arrays(prop.bs_ue, sel), lm.cir_link_arrays(ref.bs_ue, sel))
-        p = np.abs(d["power_dev_db"])
-        a = lm.link_deviation(lm.cir_link_arrays(prop.adv_ue, sel), lm.cir_link_arrays(ref.adv_ue, sel))
-        pa = np.abs(a["power_dev_db"])
+        d, p, pa = harness.power_deviation(prop, ref, sel)
         print(f"| {m:g} | {nb} | {dt:.1f} | {p.size} | {100 * np.mean(p > 3):.1f} | "
               f"{100 * np.mean(p > 1):.1f} | {lm.quantile(p, 90):.2f} | "
               f"{100 * np.nanmean(d['strongest_found']):.0f} | {100 * np.mean(pa > 1):.1f} |")

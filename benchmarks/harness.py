@@ -11,6 +11,7 @@
 * :func:`timed_trace`: a run's propagation (``raytrace.trace``) on some points, no cache, with
   its wall seconds (the fastest of a few identical traces when asked): the package's own,
   :func:`veriloc_rt.studies.timing.timed_trace`, which ``veriloc-rt bench`` times with;
+* :func:`power_deviation`: link by link, a trace's received power against a reference trace's;
 * :func:`scenario_runner`: a :class:`~veriloc_rt.sim.runner.ScenarioRunner` of a config (of
   the installed package or of a copy under another name, for A/B timings);
 * :func:`run_cli`: ``veriloc-rt run`` in its own process, its wall seconds and ``metrics.json``;
@@ -94,6 +95,19 @@ def timed_links(tracer, tx, rx, fid=None):
     t0 = time.perf_counter()
     raw = trace_links(tracer, tx, rx, fid.direction == "reciprocal", fid.rays_per_source)
     return raw, time.perf_counter() - t0
+
+
+def power_deviation(prop, ref, points) -> tuple[dict, np.ndarray, np.ndarray]:
+    """Link by link at ``points``, ``prop`` against the reference propagation ``ref``: the
+    serving links' deviations (``link_metrics.link_deviation``), their absolute received-power
+    deviations, dB, and the adversary -> UE links' absolute power deviations, dB."""
+    from veriloc_rt.propagation import link_metrics as lm
+
+    def dev(a, b):
+        return lm.link_deviation(lm.cir_link_arrays(a, points), lm.cir_link_arrays(b, points))
+
+    d = dev(prop.bs_ue, ref.bs_ue)
+    return d, np.abs(d["power_dev_db"]), np.abs(dev(prop.adv_ue, ref.adv_ue)["power_dev_db"])
 
 
 def scenario_runner(config: str | Path | None, points: int | None, work: Path,
