@@ -109,7 +109,10 @@ def raytrace_runs(cfg: dict, out: Path, workers: int, retrace: bool) -> dict:
     cfg.setdefault("propagation", {}).setdefault("raytrace", {})["cache_dir"] = str(cache.resolve())
     runs = [("raytrace cold", cfg), ("raytrace warm", cfg)]
     if retrace:
-        runs += [("raytrace again", cfg), ("raytrace seed+1", {**cfg, "seed": cfg.get("seed", 1) + 1})]
+        from veriloc_rt.config import config_from_dict
+
+        seed = config_from_dict(cfg).seed   # the config's, or the default
+        runs += [("raytrace again", cfg), ("raytrace seed+1", {**cfg, "seed": seed + 1})]
     results = {}
     for name, c in runs:
         if name in ("raytrace again", "raytrace seed+1"):
