@@ -141,7 +141,7 @@ def main() -> int:
     ap.add_argument("--points", type=int, help="trajectory points (default: 60 UMa, 40 ci-tiny)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(args.out) if args.out else Path(tmp)
+        work = Path(args.out).resolve() if args.out else Path(tmp)   # the runs start in it
         work.mkdir(parents=True, exist_ok=True)
         print(f"{'config':8s} {'points':>6s} {'full s':>7s} {'kill s':>7s} {'resume s':>8s} "
               f"{'ratio':>6s} | run() {'full s':>6s} {'resume s':>8s} {'ratio':>6s} | "
