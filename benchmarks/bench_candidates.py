@@ -46,7 +46,7 @@ def main() -> None:
     ref_cfg = load_config(args.reference)
     base = load_config(args.config) if args.config else replace(
         ref_cfg, propagation=replace(ref_cfg.propagation, raytrace=Config().propagation.raytrace))
-    with harness.geometry(ref_cfg, "bench-candidates-scene") as geo:
+    with harness.geometry(ref_cfg) as geo:   # the cache keys on the scene files, not their folder
         compare(geo, ref_cfg, base, args.settings)
 
 
