@@ -709,6 +709,26 @@ def outputs_md() -> str:
             "plots.plot_detection_rates(metrics, ax=right)",
             "fig.savefig(\"fig3.pdf\")",
             "```"]
+    from veriloc_rt.report.postprocess import EXACT
+
+    out += ["", "## Comparing runs and re-analysing one: `veriloc-rt diff`, `roc`, "
+            "`paper-table`", "",
+            "- `veriloc-rt diff RUN_A RUN_B [--exact COL,COL,...]` compares the two folders' "
+            "`<scenario>_results.csv`: per file and column, the rows that differ and the "
+            "largest absolute and relative difference (numbers as floats, NaN equal to NaN). "
+            "The `--exact` columns (default: " + ", ".join(f"`{c}`" for c in EXACT) + ") must "
+            "be identical: exit 1 when one differs or the files' rows or columns do not "
+            "match, 0 otherwise.",
+            "- `veriloc-rt roc DIR --out OUT [--set FIELD=VALUE ...]` redoes a run's detection "
+            "analysis from its `run.json` and results CSVs into `OUT` (`roc.csv`, `roc.png`, "
+            "`roc_metrics.json`: the `roc` block `metrics.json` would hold) and prints the "
+            "summary `run` prints. `--set` overrides an analysis field with a JSON value "
+            "(`detectors.fusion.*`, `detectors.min_benign_accept`); the verdict columns stay "
+            "the run's. `OUT` may not be the run's own folder.",
+            "- `veriloc-rt paper-table DIR/metrics.json` (or `DIR`) prints the run's "
+            "correct-decision rates and outcome shares beside the paper's "
+            "([paper validation](validation-paper.md)) as markdown, each cell marked `✗` "
+            "outside the acceptance band, and counts the cells within it."]
     out += ["", "## `veriloc-rt scene`, `veriloc-rt keys`", "",
             "`scene` writes `scene.xml` (Mitsuba, loadable by Sionna RT), `meshes/*.ply` and "
             "`scene_top_view.png`. `keys` writes one AES, HMAC and Ed25519 key file per BS; "

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 
 # one BLAS thread: the chain's matrices are small, and multithreaded BLAS on them was measured
-# ~10x slower on a shared 2-core machine (scripts/bench_chain.py); set before numpy loads
+# ~10x slower on a shared 2-core machine (benchmarks/bench_chain.py); set before numpy loads
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -503,6 +503,37 @@ def cmd_plot(args) -> int:
     return 0
 
 
+def cmd_diff(args) -> int:
+    from .report.postprocess import EXACT, diff_runs
+
+    exact = EXACT if args.exact is None else tuple(c for c in args.exact.split(",") if c)
+    report = diff_runs(args.run_a, args.run_b, exact)
+    print("\n".join(report.lines))
+    return 0 if report.ok else 1
+
+
+def cmd_roc(args) -> int:
+    from .report.postprocess import format_roc, roc_of_run
+
+    metrics = roc_of_run(args.dir, args.out, args.set)
+    if metrics is None:
+        print("no analysis: the run needs a 'none' scenario, an attack scenario and statistic "
+              "columns", file=sys.stderr)
+        return 1
+    print(format_roc(metrics))
+    print(f"wrote {args.out}/ (roc.csv, roc.png, roc_metrics.json)")
+    return 0
+
+
+def cmd_paper_table(args) -> int:
+    from .report.postprocess import paper_table, read_metrics
+
+    text, good, total = paper_table(read_metrics(args.metrics))
+    print(text)
+    print(f"\n{good} of {total} cells within the acceptance band (✗: outside)")
+    return 0
+
+
 class ArgumentParser(argparse.ArgumentParser):
     """argparse with the one-line error of every other bad input: ``error: <flag>: <problem>``,
     exit code 2 (argparse's own prints the usage first). Subparsers inherit the class."""
@@ -689,6 +720,27 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--dpi", type=int, default=300, help="resolution of PNG figures, dots per "
                     "inch (default 300; the run writes 110)")
     pl.set_defaults(func=cmd_plot)
+    df = sub.add_parser("diff", help="compare two run folders' results CSVs column by column "
+                        "(exit 1 when an --exact column differs)")
+    df.add_argument("run_a", help="a run's --out folder")
+    df.add_argument("run_b", help="another run's --out folder")
+    df.add_argument("--exact", help="comma-separated columns that must be identical "
+                    "(default: the decisions, outcomes, attack flag, index and time)")
+    df.set_defaults(func=cmd_diff)
+    ro = sub.add_parser("roc", help="a finished run's detection analysis (ROC, AUC, fused "
+                        "decisions) again, with detector settings overridden")
+    ro.add_argument("dir", help="the run's --out folder")
+    ro.add_argument("--out", required=True, help="output folder for roc.csv, roc.png, "
+                    "roc_metrics.json (not the run's own: its files are never overwritten)")
+    ro.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="override a config field with a JSON value, e.g. "
+                    "detectors.fusion.false_alarm=0.01 (the analysis fields detectors.fusion.* "
+                    "and detectors.min_benign_accept; the verdicts stay the run's)")
+    ro.set_defaults(func=cmd_roc)
+    pt = sub.add_parser("paper-table", help="a run's metrics beside the paper's figures "
+                        "(markdown), cells within the acceptance band counted")
+    pt.add_argument("metrics", help="the run's metrics.json (or its --out folder)")
+    pt.set_defaults(func=cmd_paper_table)
     return p
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import csv
 import json
-import os
+import shutil
 import subprocess
 import sys
 
@@ -19,8 +19,6 @@ import scipy.io
 import veriloc_rt
 from veriloc_rt.cli import main
 from veriloc_rt.report.tables import TABLES, load_run
-
-from .test_cli import ROOT
 
 CONFIG = {"seed": 2, "propagation": {"model": "uma", "uma_mode": "pathloss_only"},
           "trajectory": {"num_points": 32}, "run": {"evaluate_encrypted": False},
@@ -191,29 +189,116 @@ def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
         assert line.count("uninf.") == len(flagged), line
 
 
-def test_roc_of_run_writes_only_to_out_and_states_its_target(run_dir, tmp_path):
+def test_roc_command_writes_only_to_out_and_states_its_target(run_dir, tmp_path, capsys):
     before = {p.name: p.read_bytes() for p in run_dir.iterdir() if p.is_file()}
-    script = [sys.executable, str(ROOT / "scripts" / "roc_of_run.py"), str(run_dir)]
-    r = subprocess.run(script + ["--out", str(run_dir)], capture_output=True, text=True)
-    assert r.returncode == 2 and r.stderr.startswith("error: --out: "), r.stderr
-    r = subprocess.run(script, capture_output=True, text=True)
-    assert r.returncode == 2   # --out is required
+    assert main(["roc", str(run_dir), "--out", str(run_dir)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out: ") and err.count("\n") == 1, err
+    # the run's own settings: the analysis from the files is the one the run made
+    assert main(["roc", str(run_dir), "--out", str(tmp_path / "same")]) == 0
+    capsys.readouterr()
+    assert (json.loads((tmp_path / "same" / "roc_metrics.json").read_text())
+            == json.loads((run_dir / "metrics.json").read_text())["roc"])
+    assert (tmp_path / "same" / "roc.csv").read_bytes() == (run_dir / "roc.csv").read_bytes()
     out = tmp_path / "roc"
-    r = subprocess.run(script + ["--out", str(out), "--set", "detectors.fusion.false_alarm=0.01"],
-                       capture_output=True, text=True, env={**os.environ,
-                                                            "OPENBLAS_NUM_THREADS": "1"})
-    assert r.returncode == 0, r.stderr
+    assert main(["roc", str(run_dir), "--out", str(out), "--set",
+                 "detectors.fusion.false_alarm=0.01"]) == 0
+    stdout = capsys.readouterr().out
     assert {p.name: p.read_bytes() for p in run_dir.iterdir() if p.is_file()} == before
     roc = json.loads((out / "roc_metrics.json").read_text())
     assert roc["fusion"]["false_alarm"] == 0.01 and roc["fusion"]["test"]
-    assert "false alarm <= 1 %" in r.stdout
+    assert "false alarm <= 1 %" in stdout
     # every NP fusion line states its measured test false alarm, "> target 1" when above it
     for s, t in roc["fusion"]["test"].items():
         fa = 100 * t["NPFusion"]["false_alarm"]
-        line = next(ln for ln in r.stdout.splitlines()
+        line = next(ln for ln in stdout.splitlines()
                     if ln.strip().startswith(s + " ") and "NP fusion" in ln)
         assert f"false alarm {fa:4.1f}" in line
         assert ("> target 1" in line) == (fa > 1.0), line
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["roc", "{tmp}/nowhere", "--out", "{tmp}/o"], "RUN_DIR"),
+    (["roc", "{run}", "--out", "{tmp}/o", "--set", "detectors.fusion.k"], "--set"),
+    (["roc", "{run}", "--out", "{tmp}/o", "--set", "detectors.fusion.k=two"], "--set"),
+    (["roc", "{run}", "--out", "{tmp}/o", "--set", "detectors.nope=1"], "detectors.nope"),
+    (["diff", "{run}", "{tmp}/nowhere"], "RUN_B"),
+    (["diff", "{tmp}", "{run}"], "RUN_A"),
+    (["paper-table", "{tmp}/nowhere.json"], "{tmp}/nowhere.json"),
+    (["paper-table", "{run}/run.json"], "{run}/run.json"),
+])
+def test_post_processing_bad_input_is_one_line_exit_2(run_dir, tmp_path, capsys, argv, field):
+    fill = {"tmp": str(tmp_path), "run": str(run_dir)}
+    assert main([a.format(**fill) for a in argv]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.startswith(f"error: {field.format(**fill)}: ")
+    assert captured.err.count("\n") == 1, captured.err
+    assert not (tmp_path / "o").exists()
+
+
+def _edit_csv(path, row: int, column: str, value: str) -> str:
+    """Set one cell of a results CSV; returns the cell's old text."""
+    with open(path, newline="") as fh:
+        lines = list(csv.reader(fh))
+    col = lines[0].index(column)
+    old, lines[row + 1][col] = lines[row + 1][col], value
+    with open(path, "w", newline="") as fh:
+        csv.writer(fh, lineterminator="\n").writerows(lines)
+    return old
+
+
+def test_diff_command_reports_the_cells_changed(run_dir, tmp_path, capsys):
+    copy = tmp_path / "copy"
+    shutil.copytree(run_dir, copy)
+    assert main(["diff", str(run_dir), str(copy)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    scenarios = sorted(p.name for p in run_dir.glob("*_results.csv"))
+    assert out == [f"{s}: 32 rows, identical" for s in scenarios] + [
+        "the --exact columns are identical"]
+    # a known change: one error moved by 0.25 m, one HMAC verdict flipped
+    target = copy / "none_results.csv"
+    rows = _csv(target)
+    k = next(i for i, r in enumerate(rows) if r["error_m"])
+    old = float(_edit_csv(target, k, "error_m", repr(float(rows[k]["error_m"]) + 0.25)))
+    _edit_csv(target, 5, "HMAC", str(1 - int(rows[5]["HMAC"])))
+    assert main(["diff", str(run_dir), str(copy)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    i = out.index("none_results.csv: 32 rows")
+    rel = 0.25 / max(abs(old), abs(old + 0.25))
+    assert out[i + 1] == (f"  {'HMAC':16s} {1:5d} rows differ, max abs {1:.3g}, max rel {1:.3g}"
+                          "  <- must be identical")
+    err_line = next(ln for ln in out[i + 1:] if ln.strip().startswith("error_m"))
+    # 0.25 m up to the CSV's rounding of the old value (3 significant digits printed)
+    assert err_line == f"  {'error_m':16s} {1:5d} rows differ, max abs {0.25:.3g}, max rel {rel:.3g}"
+    assert out[-1] == "an --exact column DIFFERS"
+    # the verdict is not required to be identical: the run passes
+    assert main(["diff", str(run_dir), str(copy), "--exact", "Time,index"]) == 0
+
+
+def test_paper_table_counts_the_cells_within_the_band(tmp_path, capsys):
+    from veriloc_rt.report.paper import PAPER_OUTCOMES, PAPER_RATES, SCENARIOS, tolerance
+    from veriloc_rt.report.postprocess import rate_percent
+
+    unit = rate_percent(1.0)   # metrics.json's rates in the unit the file holds them in
+    # every rate at the paper's value, except HMAC under fbs: just outside its band
+    off = PAPER_RATES["fbs"]["HMAC"] - 1.5 * tolerance(PAPER_RATES["fbs"]["HMAC"])
+    sc = {s: {"correct_decision_rate": {d: v / unit for d, v in PAPER_RATES[s].items()},
+              "outcomes": {k: v / unit for k, v in PAPER_OUTCOMES["outcomes"][s].items()},
+              "outcomes_encrypted": {k: v / unit for k, v in
+                                     PAPER_OUTCOMES["outcomes_encrypted"][s].items()}}
+          for s in SCENARIOS}
+    sc["fbs"]["correct_decision_rate"]["HMAC"] = off / unit
+    (tmp_path / "metrics.json").write_text(json.dumps({"scenarios": sc}))
+    assert main(["paper-table", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    cells = 5 * len(SCENARIOS) + 2 * 3 * len(SCENARIOS)   # 5 detectors, 2 x 3 outcomes
+    assert out.rstrip().endswith(f"{cells - 1} of {cells} cells within the acceptance band "
+                                 "(✗: outside)")
+    hmac = next(ln for ln in out.splitlines() if ln.startswith("| HMAC |"))
+    col = 1 + list(SCENARIOS).index("fbs")
+    assert hmac.split(" | ")[col] == f"{PAPER_RATES['fbs']['HMAC']:.1f} / {off:.1f} ✗"
+    assert out.count("✗") == 2   # the cell and the legend
 
 
 def test_plot_command_redraws_in_the_chosen_format_and_dpi(run_dir, tmp_path):

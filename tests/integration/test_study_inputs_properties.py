@@ -63,7 +63,7 @@ def no_propagation():
     with pytest.MonkeyPatch.context() as mp:
         # the names as the commands' modules hold them
         mp.setattr("veriloc_rt.sim.engine.compute_propagation", _reached)       # compare
-        mp.setattr("veriloc_rt.studies.bench.trace", _reached)
+        mp.setattr("veriloc_rt.studies.timing.trace", _reached)           # bench
         mp.setattr("veriloc_rt.studies.bench.uma_propagation", _reached)
         mp.setattr("veriloc_rt.studies.validate.trace", _reached)
         yield

@@ -2,7 +2,7 @@
 
 They make thousands of small linear-algebra calls (4 x 4 eigendecompositions, 5 x 120 matrix
 products); on the shared 2-core machine multithreaded OpenBLAS makes those ~7x slower (a chain
-call: 1.1 s instead of 0.16 s), as ``scripts/bench_chain.py`` and the engine's
+call: 1.1 s instead of 0.16 s), as ``benchmarks/bench_chain.py`` and the engine's
 one-process-per-core executors already note. The environment variable cannot be set this late
 (numpy is imported), so the thread count of numpy's and scipy's bundled OpenBLAS is set through
 their own ``*_set_num_threads`` entry points (what threadpoolctl does) and restored afterwards.

@@ -1,6 +1,6 @@
 """Where tag verification starts failing on honest signals: the false-alarm onset vs per-RE SNR.
 
-Set-up as ``scripts/bench_prs.py``: the three serving BSs' slot grids (comb 6, 12 symbols,
+Set-up as ``benchmarks/bench_prs.py``: the three serving BSs' slot grids (comb 6, 12 symbols,
 52 PRB, tags in the empty REs) superposed, each through its own flat channel (random phase,
 delay up to 3 us), AWGN per RE; the UE estimates channel and noise from each BS's own PRS and
 decodes (LDPC BG2 rate 1/2, 25 BP iterations, the codeword repeated over the slot's 1248 tag

@@ -3,7 +3,7 @@ PRS-Assisted OTDOA 5G Positioning Systems", Sec. VI; README.md, "How to cite").
 
 Correct-decision rates from Fig. "techniques", outcome shares from Fig. "encrypted_PRS", both in
 percent, evaluated by the authors on the stochastic 3GPP UMa channel (1200 points, attack on
-points 301-900). Used as the reference in plots and in ``scripts/paper_table.py``.
+points 301-900). Used as the reference in plots and in ``veriloc-rt paper-table``.
 """
 
 from __future__ import annotations

@@ -56,7 +56,7 @@ from ..fileio import atomic_output, atomic_write_text, json_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 from ..propagation import link_metrics as lm
 from ..world.geometry import build_geometry
-from ..propagation.raytrace import trace
+from .timing import timed_trace
 from ..sim.run_folder import run_keys
 from ..propagation.stochastic import uma_propagation
 from ..report.plots import plot_pareto
@@ -158,7 +158,7 @@ TIME_DECIMATION = 8
 #: front end (the shared per-RE noise reaches only the FFT windows)
 TIME_DOMAIN_PATCH = {"channel.time_decimation": TIME_DECIMATION, "channel.time_front_end": "ofdm"}
 #: the ray-tracing reference of the full sweep: the most complete setting of the convergence
-#: study (docs/convergence.md, scripts/bench_convergence.py): the exhaustive edge-diffraction
+#: study (docs/convergence.md, benchmarks/bench_convergence.py): the exhaustive edge-diffraction
 #: candidates together with 1e7 rays per source of Sionna's own, its sampled diffraction
 #: included ('both'), at depth 4 (a path of five
 #: interactions carries a few % of a link's power). Rays alone converge slowly: a strong path (a
@@ -393,20 +393,9 @@ def _geometry(cfg: Config, scene_root: Path):
 
 def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
     """The serving links' CIRs at ``points`` (the other points' links are not traced) and the
-    warm cost per link: the fastest of ``repeats`` identical traces (the first of a setting also
-    compiles its Dr.Jit kernels and, in a new process, starts the LLVM back end,
-    docs/notes/performance-history.md; the trace is deterministic, so every repeat gives the same CIRs)."""
-
-    p = geometry.num_points
-    on = np.zeros(p, dtype=bool)
-    on[points] = True
-    best = np.inf
-    for _ in range(max(1, repeats)):
-        t = time.perf_counter()
-        prop = trace(geometry, cfg.propagation, cfg.seed, cache_dir=None,
-                     adversary_points=np.zeros(p, dtype=bool), ue_points=on)
-        best = min(best, time.perf_counter() - t)
-    return prop.bs_ue, best / (3 * on.sum())
+    warm cost per link: the fastest of ``repeats`` identical traces (:func:`timed_trace`)."""
+    prop, best = timed_trace(geometry, cfg, points, adversary=False, repeats=repeats)
+    return prop.bs_ue, best / (3 * np.unique(points).size)
 
 
 def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int | None = None,

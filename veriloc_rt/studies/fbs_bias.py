@@ -4,7 +4,7 @@ The paper's selective spoofer adds "a specific timing delay" to a targeted BS's 
 give its value. :func:`biased_fix_outcomes` shows what the value decides without any waveform:
 exact RSTDs, the bias added to the spoofed slots' arrivals, the chain's multilaterator (same
 residual check); :func:`sweep` counts the outcomes over a config's attack window per bias
-(``scripts/fbs_bias_sweep.py`` prints them).
+(``benchmarks/fbs_bias_sweep.py`` prints them).
 """
 
 from __future__ import annotations

@@ -206,7 +206,7 @@ def test_sionna_coefficient_is_off_the_exact_half_plane(scenes):
 def wedge_case(h, phi_p_deg, phi_deg, r0=(-1.0, 1.0), rn=(-1.0, 1.0), eta=None):
     """Trace a roof-edge wedge (n = 1.5) from a source 500 m away to a receiver 20 m away,
     both ways, against the independent UTD with the faces' reflection coefficients
-    (scripts/diffraction_table.py tabulates the same cases). -> (forward, reverse, wanted)
+    (benchmarks/diffraction_table.py tabulates the same cases). -> (forward, reverse, wanted)
     Jones matrices"""
     edge = np.array([0.0, 0.0, 15.0])
     php, ph = np.deg2rad(phi_p_deg), np.deg2rad(phi_deg)

@@ -585,7 +585,7 @@ class ToAEstimator:
         Single precision: the maps built from it only rank hypotheses and cells against
         thresholds (relative error ~1e-7, far below the noise); the ToA itself is refined on
         exact double-precision evaluations. Measured 2x faster than double on the chain
-        (scripts/bench_chain.py). A per-bin window w_k commutes with the sum over blocks, so
+        (benchmarks/bench_chain.py). A per-bin window w_k commutes with the sum over blocks, so
         one product serves the windowed map too. On the occupied parts (``cs.groups``), one
         product per group of blocks sharing their bins: a comb-6 PRS needs 1/6 of the dense
         product's work (summing block by block instead was measured 6x slower). Groups whose

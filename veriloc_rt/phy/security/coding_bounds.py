@@ -1,5 +1,5 @@
 """What a binary code of a given length can do on the binary-input AWGN channel: the reference
-the tag decoder is checked against (tests, ``scripts/ldpc_gate.py``).
+the tag decoder is checked against (``tests/unit/phy/security/test_ldpc.py``).
 
 The channel is described by the mean ``mu`` of its consistent LLRs, L ~ N(mu, 2 mu) for a sent 0
 (BPSK at Es/N0 = mu / 4 per real dimension). With i = log2(1 + e^-L), its capacity is 1 - E[i]

@@ -4,7 +4,7 @@ Traces the serving BS -> UE links of the config's trajectory twice (diffraction_
 'sionna' and 'utd', everything else as configured) and prints each one's coverage and median
 (p10 / p90) path gain at the first ULA element, and the per-link change.
 
-    .venv/bin/python scripts/diffraction_power.py [CONFIG] [--points N] [--cache DIR]
+    .venv/bin/python benchmarks/diffraction_power.py [CONFIG] [--points N] [--cache DIR]
 """
 
 from __future__ import annotations
@@ -12,15 +12,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
-import tempfile
-import time
-from pathlib import Path
 
+import harness
 import numpy as np
 
 from veriloc_rt.config import load_config
-from veriloc_rt.propagation.raytrace import trace
-from veriloc_rt.world.geometry import build_geometry
 
 
 def main() -> int:
@@ -33,16 +29,11 @@ def main() -> int:
     if args.points:
         cfg = cfg.replace(trajectory=dataclasses.replace(cfg.trajectory, num_points=args.points))
     gain = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        geo = build_geometry(cfg, Path(tmp))
-        p = geo.num_points
+    with harness.geometry(cfg) as geo:
         for coef in ("sionna", "utd"):
             rtc = dataclasses.replace(cfg.propagation.raytrace, diffraction_coefficient=coef)
-            prop_cfg = dataclasses.replace(cfg.propagation, raytrace=rtc)
-            t = time.perf_counter()
-            prop = trace(geo, prop_cfg, cfg.seed, cache_dir=args.cache,
-                         adversary_points=np.zeros(p, bool))
-            dt = time.perf_counter() - t
+            c = cfg.replace(propagation=dataclasses.replace(cfg.propagation, raytrace=rtc))
+            prop, dt = harness.timed_trace(geo, c, adversary=False, cache_dir=args.cache)
             pw = np.sum(np.abs(prop.bs_ue.gains[:, :, 0, :]) ** 2, axis=-1).ravel()
             g = 10 * np.log10(np.where(pw > 0, pw, np.nan))
             gain[coef] = g

@@ -31,8 +31,8 @@ Everything comes from the config (``--set path=value`` patches it, e.g. the diff
 coefficient), so the study re-runs on any scene or physics. The 1e7-ray settings take minutes
 per handful of links: run the full study in the background, e.g.
 
-    nohup .venv/bin/python scripts/bench_convergence.py --keep /tmp/conv-keep \\
-        --out /tmp/conv > /tmp/conv.txt 2>&1 &
+    nohup .venv/bin/python benchmarks/bench_convergence.py --keep out/conv-keep \\
+        --out out/conv > out/conv.txt 2>&1 &
 
 and after a physics change, e.g. ``--set propagation.raytrace.diffraction_coefficient='"utd"'``.
 
@@ -55,6 +55,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import harness
 import numpy as np
 
 SPEED_OF_LIGHT = 299_792_458.0
@@ -128,7 +129,6 @@ def patched(data: dict, patch: dict) -> dict:
 def child(job: Path, out: Path) -> None:
     """Trace the job's links with its setting in this process; save paths and timing."""
     from veriloc_rt.config import config_from_dict
-    from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
 
     spec = json.loads(job.with_suffix(".json").read_text())
     with np.load(job) as d:
@@ -140,23 +140,16 @@ def child(job: Path, out: Path) -> None:
         "propagation.raytrace.rays_per_source": s["rays_per_source"]}
         | ({} if s.get("edge_candidates") is None else
            {"propagation.raytrace.edge_candidates": s["edge_candidates"]})))
-    fid = cfg.propagation.raytrace
     seed = cfg.seed if s.get("seed") is None else s["seed"]
-    tracer = LinkTracer(spec["scene_xml"], cfg.propagation.carrier_frequency_hz, fid, seed,
-                        cache_dir=None)
-    st = tracer.sionna_tracer()          # scene loading is not tracing
+    tracer = harness.loaded_tracer(spec["scene_xml"], cfg, seed)
+    st = tracer.sionna_tracer()
     if not s["deterministic"]:
         from veriloc_rt.backend import import_sionna
         st.solver = import_sionna().PathSolver(deterministic=False)
-    recip = fid.direction == "reciprocal"
     load0 = os.getloadavg()[0]
-    t0 = time.perf_counter()
-    trace_links(tracer, tx[:first], rx[:first], recip, fid.rays_per_source)   # compile kernels
-    warm = time.perf_counter() - t0
+    _, warm = harness.timed_links(tracer, tx[:first], rx[:first])   # compile kernels
     calls0 = tracer.stats["calls"]
-    t0 = time.perf_counter()
-    raw = trace_links(tracer, tx, rx, recip, fid.rays_per_source)
-    dt = time.perf_counter() - t0
+    raw, dt = harness.timed_links(tracer, tx, rx)
     np.savez(out, tau=raw.tau, a=raw.a, valid=raw.valid, interactions=raw.interactions,
              seconds=dt, warmup_s=warm, calls=tracer.stats["calls"] - calls0,
              load_start=load0, load_end=os.getloadavg()[0],
@@ -166,16 +159,12 @@ def child(job: Path, out: Path) -> None:
 # -- study (parent) --------------------------------------------------------------------------
 def build_links(cfg_data: dict, work: Path, every: int, max_points: int | None):
     from veriloc_rt.config import config_from_dict
-    from veriloc_rt.world.geometry import build_geometry
 
-    cfg = config_from_dict(cfg_data)
-    geo = build_geometry(cfg, work / "scene")
-    pts = np.arange(0, geo.num_points, every)
-    if max_points:
-        pts = pts[:max_points]
-    tx = geo.bs_pos[geo.serving[pts]].reshape(-1, 3)
-    rx = np.repeat(geo.ue.pos[pts], 3, axis=0)
-    return geo, pts, tx, rx
+    with harness.geometry(config_from_dict(cfg_data), work / "scene") as geo:
+        pts = np.arange(0, geo.num_points, every)
+        if max_points:
+            pts = pts[:max_points]
+        return (geo, pts, *harness.serving_links(geo, pts))
 
 
 def trace_setting(setting: dict, cfg_data: dict, scene_xml: Path, tx, rx, work: Path,

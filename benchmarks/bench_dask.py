@@ -22,7 +22,7 @@ trajectory chunks (``run.realisations = 1``). Prints one table:
 Each Dask run's result files are checked against the serial ones (the CSVs byte for byte).
 Usage (19 minutes on the loaded 2-core machine of docs/notes/performance-history.md):
 
-    python scripts/bench_dask.py [--out bench-dask] [--realisations 4] [--points 60] [--nanny]
+    python benchmarks/bench_dask.py [--out bench-dask] [--realisations 4] [--points 60] [--nanny]
 """
 
 from __future__ import annotations
@@ -30,16 +30,15 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+import harness
 
-from veriloc_rt.sim.process_cluster import process_cluster  # noqa: E402
+from veriloc_rt.sim.process_cluster import process_cluster
+
+ROOT = harness.ROOT
 
 CONFIG = ROOT / "configs" / "paper-uma.json"
 #: key prefixes of the tasks each mode submits (veriloc_rt.sim.montecarlo, .executors)
@@ -48,19 +47,8 @@ TASK_PREFIX = {"montecarlo": "veriloc-realisation-", "chunks": "veriloc-chains-"
 
 def run_cli(cfg: dict, out: Path, *extra: str) -> tuple[float, dict]:
     """``veriloc-rt run`` in its own process -> (wall s, metrics.json timing_s)."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    shutil.rmtree(out, ignore_errors=True)
-    cfg_path = out.parent / f"{out.name}.json"
-    cfg_path.write_text(json.dumps(cfg, indent=2))
-    t = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-I", "-m", "veriloc_rt.cli", "run", "--out", str(out),
-                           *extra, "--", str(cfg_path)], capture_output=True, text=True)
-    wall = time.perf_counter() - t
-    (out.parent / f"{out.name}.log").write_text(proc.stdout + proc.stderr)
-    if proc.returncode != 0:
-        raise SystemExit(f"error: {out.name} failed (exit {proc.returncode}); see "
-                         f"{out.parent / (out.name + '.log')}")
-    return wall, json.loads((out / "metrics.json").read_text())["timing_s"]
+    wall, metrics = harness.run_cli(cfg, out, *extra)
+    return wall, metrics["timing_s"]
 
 
 def csvs(folder: Path) -> dict:

@@ -7,7 +7,7 @@
    time-domain AWGN under the unitary OFDM), channel and noise estimated from the BS's own PRS
    REs. A failure here is what the HMAC/DS detector would report as a false alarm.
 
-Usage: python scripts/bench_prs.py [--slots 30] [--snr -8 1 1] [--rates 15.36e6 122.88e6]
+Usage: python benchmarks/bench_prs.py [--slots 30] [--snr -8 1 1] [--rates 15.36e6 122.88e6]
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ this process, one after the other, and prints the median seconds per point, the 
 and the least-squares slope over the TRP counts (seconds per added TRP). A benchmark, not a
 test: the figures depend on the machine and its load.
 
-    .venv/bin/python scripts/bench_trps.py [--trps 3 6 9 12 18] [--points 10] [--mode pathloss_only]
+    .venv/bin/python benchmarks/bench_trps.py [--trps 3 6 9 12 18] [--points 10] [--mode pathloss_only]
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # as in the engine's worker
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
-import tempfile  # noqa: E402
 import time  # noqa: E402
 
+import harness  # noqa: E402
 import numpy as np  # noqa: E402
 
 from veriloc_rt.config import config_from_dict  # noqa: E402
@@ -28,7 +28,6 @@ from veriloc_rt.errors import InputError  # noqa: E402
 from veriloc_rt.phy.chain import STAGES, PositioningChain  # noqa: E402
 from veriloc_rt.phy.security.keys import simulated_keys  # noqa: E402
 from veriloc_rt.sim.engine import compute_propagation  # noqa: E402
-from veriloc_rt.world.geometry import build_geometry  # noqa: E402
 
 
 def per_point(n: int, points: int, mode: str) -> tuple[float, dict]:
@@ -36,9 +35,8 @@ def per_point(n: int, points: int, mode: str) -> tuple[float, dict]:
     cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": mode},
                             "topology": {"num_trps": n}, "channel": {"power_control": False},
                             "trajectory": {"num_points": max(points, 2)}})
-    with tempfile.TemporaryDirectory() as tmp:
-        geo = build_geometry(cfg, tmp)
-    prop = compute_propagation(cfg, geo)
+    with harness.geometry(cfg) as geo:
+        prop = compute_propagation(cfg, geo)
     keys = simulated_keys(range(len(geo.bs_pos)), np.random.default_rng(0))
     chain = PositioningChain(cfg.nr, cfg.security, cfg.channel, cfg.receiver,
                              cfg.propagation.ue_array, cfg.propagation.carrier_frequency_hz, keys)

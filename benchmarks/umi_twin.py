@@ -18,7 +18,7 @@ Prints a markdown block (the one ``docs/compare.md`` quotes) and writes it to
 
 Usage (from the repository root)::
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/umi_twin.py --points 40 --out OUT
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/umi_twin.py --points 40 --out OUT
 """
 
 from __future__ import annotations

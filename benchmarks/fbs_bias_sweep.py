@@ -7,7 +7,7 @@ bias and runs the chain's multilaterator (same residual check), counting success
 success threshold), large error and service failure (no fix). The waveform chain then adds
 noise and hearability on top (compare with a run's metrics.json). Usage:
 
-    python scripts/fbs_bias_sweep.py configs/paper-uma.json [--bias-m 150 300 450 600 750 1000]
+    python benchmarks/fbs_bias_sweep.py configs/paper-uma.json [--bias-m 150 300 450 600 750 1000]
 """
 
 from __future__ import annotations

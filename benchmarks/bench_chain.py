@@ -16,8 +16,8 @@
 BLAS is limited to one thread (as in the engine's one-process-per-core executors): on a shared
 2-core machine multithreaded BLAS on these small matrices is ~10x slower.
 
-Usage: python scripts/bench_chain.py [--uma-points 100] [--ref-points 5]
-           [--rt-cache /tmp/vcache --rt-scene /tmp/scene100 --rt-points 100]
+Usage: python benchmarks/bench_chain.py [--uma-points 100] [--ref-points 5]
+           [--rt-cache out/rt-cache [--rt-scene out/scene100] --rt-points 100]
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import argparse  # noqa: E402
 import time  # noqa: E402
 
+import harness  # noqa: E402
 import numpy as np  # noqa: E402
 
 from veriloc_rt.phy.channel import add_noise  # noqa: E402
@@ -186,11 +187,9 @@ def accuracy(name: str, cir, truth: np.ndarray) -> None:
 
 def load_rt(cache: str, scene: str, num_points: int):
     from veriloc_rt.config import config_from_dict
-    from veriloc_rt.propagation.raytrace import trace
-    from veriloc_rt.world.geometry import build_geometry
     cfg = config_from_dict({"trajectory": {"num_points": num_points}})
-    geo = build_geometry(cfg, scene)
-    prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=cache)
+    with harness.geometry(cfg, scene) as geo:
+        prop, _ = harness.timed_trace(geo, cfg, cache_dir=cache)
     return prop.bs_ue, prop.bs_ue.rx_pos
 
 
@@ -199,7 +198,7 @@ def main() -> None:
     ap.add_argument("--uma-points", type=int, default=100)
     ap.add_argument("--ref-points", type=int, default=5)
     ap.add_argument("--rt-cache", default=None)
-    ap.add_argument("--rt-scene", default="/tmp/scene100")
+    ap.add_argument("--rt-scene", default=None, help="folder of the scene (default: temporary)")
     ap.add_argument("--rt-points", type=int, default=100)
     ap.add_argument("--compare", nargs="*", default=["pathloss_only", "fast_fading", "rt"],
                     choices=["pathloss_only", "fast_fading", "rt"],

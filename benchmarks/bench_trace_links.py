@@ -9,8 +9,8 @@ per distinct link, the share spent enumerating the exhaustive edge candidates an
 occlusion tests; ``--out`` keeps the traced paths, ``--compare`` checks them against an earlier
 ``--out`` bit for bit (run the two versions of the code alternately: the machine's speed varies).
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/bench_trace_links.py --points 40 --out a.npz
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/bench_trace_links.py --points 40 --compare a.npz
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_trace_links.py --points 40 --out a.npz
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_trace_links.py --points 40 --compare a.npz
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ import argparse
 import cProfile
 import pstats
 import sys
-import tempfile
 import time
 
+import harness
 import numpy as np
 
 
@@ -43,23 +43,14 @@ def main() -> int:
     import drjit as dr
 
     from veriloc_rt.propagation import street_solver
-    from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
     from veriloc_rt.propagation.sionna_rt import RawPaths
-    from veriloc_rt.world.geometry import build_geometry
 
     dr.set_thread_count(args.threads)
     cfg = load_config(args.config)
-    fid = cfg.propagation.raytrace
-    with tempfile.TemporaryDirectory() as tmp:
-        geo = build_geometry(cfg, tmp)
-        sel = np.arange(args.start, min(args.start + args.points, geo.num_points))
-        bs = geo.bs_pos[geo.serving][sel].reshape(-1, 3)
-        ue, adv = geo.ue.pos[sel], geo.adversary.pos[sel]
-        tx = np.concatenate([bs, bs, adv])
-        rx = np.concatenate([np.repeat(ue, 3, axis=0), np.repeat(adv, 3, axis=0), ue])
-        tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed,
-                            cache_dir=None)
-        tracer.sionna_tracer()                       # loading the scene is not tracing
+    with harness.geometry(cfg) as geo:
+        tx, rx = harness.run_links(geo, range(args.start, min(args.start + args.points,
+                                                              geo.num_points)))
+        tracer = harness.loaded_tracer(geo.scene_xml, cfg)
         spent = {"candidates": 0.0, "occlusion": 0.0, "segments": 0}
         enumerate_, visible = street_solver.street_candidates, \
             street_solver.StreetCandidateGenerator._visible
@@ -82,13 +73,13 @@ def main() -> int:
         street_solver.street_candidates = timed_candidates
         street_solver.StreetCandidateGenerator._visible = timed_visible
         prof = cProfile.Profile() if args.profile else None
-        t0, c0 = time.perf_counter(), time.process_time()
+        c0 = time.process_time()
         if prof:
             prof.enable()
-        raw = trace_links(tracer, tx, rx, fid.direction == "reciprocal", fid.rays_per_source)
+        raw, wall = harness.timed_links(tracer, tx, rx)
         if prof:
             prof.disable()
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        cpu = time.process_time() - c0
     n = tracer.stats["links_traced"]
     print(f"{len(tx)} links ({n} distinct, {tracer.stats['calls']} PathSolver calls): "
           f"{wall:.2f} s wall, {cpu:.2f} s CPU, {1e3 * wall / n:.1f} ms a distinct link; "

@@ -7,7 +7,7 @@ from its propagation cache when it is there: the reference is usually expensive)
 setting the tracing time (warm: the first setting also compiles the kernels, so list the
 cheapest setting twice to see it) and the share of links more than 1 and 3 dB off. Usage:
 
-    python scripts/bench_candidates.py REFERENCE.json [--config CONFIG] SETTING [SETTING ...]
+    python benchmarks/bench_candidates.py REFERENCE.json [--config CONFIG] SETTING [SETTING ...]
 
 The default run's reference of docs/performance.md is the default config with
 ``rays_per_source`` 1e6 and ``edge_candidates`` 'both' at the whole canyon's crop (450 m).
@@ -16,15 +16,13 @@ The default run's reference of docs/performance.md is the default config with
 from __future__ import annotations
 
 import argparse
-import time
 from dataclasses import fields, replace
 
+import harness
 import numpy as np
 
 from veriloc_rt.config import Config, load_config
 from veriloc_rt.propagation import link_metrics as lm
-from veriloc_rt.propagation.raytrace import trace
-from veriloc_rt.world.geometry import build_geometry
 
 
 def patched(cfg: Config, setting: str) -> Config:
@@ -48,23 +46,21 @@ def main() -> None:
     ref_cfg = load_config(args.reference)
     base = load_config(args.config) if args.config else replace(
         ref_cfg, propagation=replace(ref_cfg.propagation, raytrace=Config().propagation.raytrace))
-    geo = build_geometry(ref_cfg, "bench-candidates-scene")
+    with harness.geometry(ref_cfg) as geo:   # the cache keys on the scene files, not their folder
+        compare(geo, ref_cfg, base, args.settings)
+
+
+def compare(geo, ref_cfg: Config, base: Config, settings: list[str]) -> None:
+    """Trace each setting on ``geo`` and print its row against the reference's trace."""
     sel = np.arange(geo.num_points)
-    t = time.perf_counter()
-    ref = trace(geo, ref_cfg.propagation, ref_cfg.seed)
-    print(f"reference: {time.perf_counter() - t:.1f} s ({ref.stats['cache_hits']} cache hits)")
+    ref, dt = harness.timed_trace(geo, ref_cfg, cache_dir="default")   # the reference's cache
+    print(f"reference: {dt:.1f} s ({ref.stats['cache_hits']} cache hits)")
     print("| setting | trace s | serving links > 1 dB off % | > 3 dB off % | p90 abs dev. dB "
           "| adversary -> UE links > 1 dB off % |")
     print("| --- | --- | --- | --- | --- | --- |")
-    for s in args.settings:
-        c = patched(base, s)
-        t = time.perf_counter()
-        prop = trace(geo, c.propagation, c.seed, cache_dir=None)
-        dt = time.perf_counter() - t
-        d = lm.link_deviation(lm.cir_link_arrays(prop.bs_ue, sel), lm.cir_link_arrays(ref.bs_ue, sel))
-        p = np.abs(d["power_dev_db"])
-        a = lm.link_deviation(lm.cir_link_arrays(prop.adv_ue, sel), lm.cir_link_arrays(ref.adv_ue, sel))
-        pa = np.abs(a["power_dev_db"])
+    for s in settings:
+        prop, dt = harness.timed_trace(geo, patched(base, s))
+        _, p, pa = harness.power_deviation(prop, ref, sel)
         print(f"| {s} | {dt:.1f} | {100 * np.mean(p > 1):.1f} | {100 * np.mean(p > 3):.1f} | "
               f"{lm.quantile(p, 90):.2f} | {100 * np.mean(pa > 1):.1f} |", flush=True)
 

@@ -5,7 +5,7 @@ Prints a markdown table (deviation in dB and degrees of each co-polar coefficien
 hard case, H the soft one, on these edge-on geometries). The cases, harness and references are
 the tests' (tests/unit/propagation/test_diffraction.py, diffraction_reference.py).
 
-    .venv/bin/python scripts/diffraction_table.py
+    .venv/bin/python benchmarks/diffraction_table.py
 """
 
 from __future__ import annotations

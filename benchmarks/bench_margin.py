@@ -8,22 +8,20 @@ row per margin: buildings kept, tracing seconds (indicative: one trace, kernels 
 first margin), the share of links more than 3 dB and 1 dB off, the p90 of the absolute
 deviation, the share of links whose strongest reference path is found. Usage:
 
-    python scripts/bench_margin.py [CONFIG] [--margins 150,200,300,450] [--points 120]
+    python benchmarks/bench_margin.py [CONFIG] [--margins 150,200,300,450] [--points 120]
 """
 
 from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 from dataclasses import replace
 
+import harness
 import numpy as np
 
 from veriloc_rt.config import Config, load_config
 from veriloc_rt.propagation import link_metrics as lm
-from veriloc_rt.propagation.raytrace import trace
-from veriloc_rt.world.geometry import build_geometry
 
 
 def main() -> None:
@@ -38,14 +36,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for m in margins:
             c = replace(cfg, scene=replace(cfg.scene, margin_m=m))
-            geo = build_geometry(c, f"{tmp}/margin_{m:g}")
-            n = geo.num_points
-            sel = np.unique(np.linspace(0, n - 1, min(args.points, n)).round().astype(int))
-            on = np.zeros(n, bool)
-            on[sel] = True
-            t = time.perf_counter()
-            prop = trace(geo, c.propagation, c.seed, cache_dir=None, adversary_points=on, ue_points=on)
-            runs[m] = (prop, sel, time.perf_counter() - t, geo.scene.num_buildings)
+            with harness.geometry(c, f"{tmp}/margin_{m:g}") as geo:
+                n = geo.num_points
+                sel = np.unique(np.linspace(0, n - 1, min(args.points, n)).round().astype(int))
+                prop, dt = harness.timed_trace(geo, c, sel)
+            runs[m] = (prop, sel, dt, geo.scene.num_buildings)
             print(f"margin {m:g} m: {geo.scene.num_buildings} buildings traced in "
                   f"{runs[m][2]:.1f} s", flush=True)
     ref = runs[margins[-1]][0]
@@ -55,10 +50,7 @@ def main() -> None:
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for m in margins:
         prop, sel, dt, nb = runs[m]
-        d = lm.link_deviation(lm.cir_link_arrays(prop.bs_ue, sel), lm.cir_link_arrays(ref.bs_ue, sel))
-        p = np.abs(d["power_dev_db"])
-        a = lm.link_deviation(lm.cir_link_arrays(prop.adv_ue, sel), lm.cir_link_arrays(ref.adv_ue, sel))
-        pa = np.abs(a["power_dev_db"])
+        d, p, pa = harness.power_deviation(prop, ref, sel)
         print(f"| {m:g} | {nb} | {dt:.1f} | {p.size} | {100 * np.mean(p > 3):.1f} | "
               f"{100 * np.mean(p > 1):.1f} | {lm.quantile(p, 90):.2f} | "
               f"{100 * np.nanmean(d['strongest_found']):.0f} | {100 * np.mean(pa > 1):.1f} |")

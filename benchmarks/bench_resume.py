@@ -11,7 +11,7 @@ the command, and the library's own ``run()`` time from ``metrics.json``, which l
 interpreter's start and the imports), the rows each scenario had at the kill, and whether the
 resumed folder's result CSVs equal the full run's byte for byte.
 
-    PYTHONPATH=$PWD .venv/bin/python scripts/bench_resume.py [--out DIR] [--kill-at 0.9]
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/bench_resume.py [--out DIR] [--kill-at 0.9]
         [--only uma ci-tiny] [--points N]
 
 Configs: the built-in default (the ray-traced canyon of ``veriloc-rt run``, 120 points), TR
@@ -141,7 +141,7 @@ def main() -> int:
     ap.add_argument("--points", type=int, help="trajectory points (default: 60 UMa, 40 ci-tiny)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        work = Path(args.out) if args.out else Path(tmp)
+        work = Path(args.out).resolve() if args.out else Path(tmp)   # the runs start in it
         work.mkdir(parents=True, exist_ok=True)
         print(f"{'config':8s} {'points':>6s} {'full s':>7s} {'kill s':>7s} {'resume s':>8s} "
               f"{'ratio':>6s} | run() {'full s':>6s} {'resume s':>8s} {'ratio':>6s} | "

@@ -9,8 +9,8 @@ setting (reciprocal, most rays). Forward tracing is not the reference: launched 
 hundreds of metres away, even 1e6 rays miss the earliest roof-edge diffraction of a third of the
 links (their first path comes out tens of metres late; 1e7 rays close the gap).
 
-    .venv/bin/python scripts/bench_raytrace.py                # 300 points, default sweep
-    .venv/bin/python scripts/bench_raytrace.py --points 1200  # the full default trajectory
+    .venv/bin/python benchmarks/bench_raytrace.py                # 300 points, default sweep
+    .venv/bin/python benchmarks/bench_raytrace.py --points 1200  # the full default trajectory
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import resource
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
+import harness
 import numpy as np
 
 from veriloc_rt.config import RayTracingConfig
@@ -38,24 +38,15 @@ def one(direction: str, rays: int, points: int, depth: int, out: Path,
         candidates: int = 2000) -> None:
     """Trace in this process and save first-path delay/power per link to ``out``."""
     from veriloc_rt.config import config_from_dict
-    from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
-    from veriloc_rt.world.geometry import build_geometry
 
     cfg = config_from_dict({"trajectory": {"num_points": points},
                             "propagation": {"raytrace": {"direction": direction,
                                                          "rays_per_source": rays,
                                                          "max_depth": depth,
                                                          "max_candidates_per_source": candidates}}})
-    with tempfile.TemporaryDirectory() as tmp:
-        geo = build_geometry(cfg, tmp)
-        tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz,
-                            cfg.propagation.raytrace, cfg.seed, cache_dir=None)
-        tx = geo.bs_pos[geo.serving].reshape(-1, 3)
-        rx = np.repeat(geo.ue.pos, 3, axis=0)
-        tracer.sionna_tracer()  # scene loading is not tracing
-        t0 = time.perf_counter()
-        raw = trace_links(tracer, tx, rx, direction == "reciprocal", rays)
-        dt = time.perf_counter() - t0
+    with harness.geometry(cfg) as geo:
+        tracer = harness.loaded_tracer(geo.scene_xml, cfg)
+        raw, dt = harness.timed_links(tracer, *harness.serving_links(geo))
     pol = cfg.propagation.raytrace.polarization
     raw = raw.project(pol.ue, pol.bs)
     a = raw.a[..., 0, 0]

@@ -8,35 +8,31 @@ markdown table: scene size after the crop, links, tracing seconds (scene loading
 compilation excluded: one warm-up link is traced first), milliseconds per link, and the share
 of links with at least one path (coverage). Usage:
 
-    python scripts/bench_munich.py [--points N] [CONFIG ...]   ('default': the built-in config)
+    python benchmarks/bench_munich.py [--points N] [CONFIG ...]   ('default': the built-in config)
 """
 
 from __future__ import annotations
 
 import argparse
-import tempfile
 import time
 
+import harness
 import numpy as np
 
 from veriloc_rt.config import load_config, with_overrides
 from veriloc_rt.propagation.cir import NO_TX
-from veriloc_rt.propagation.raytrace import LinkTracer, trace
-from veriloc_rt.world.geometry import build_geometry
 
 
 def bench(path: str, points: int) -> dict:
     cfg = with_overrides(load_config(None if path == "default" else path), points=points)
-    with tempfile.TemporaryDirectory() as tmp:
-        t = time.perf_counter()
-        geo = build_geometry(cfg, tmp)
+    t = time.perf_counter()
+    with harness.geometry(cfg) as geo:
         geo_s = time.perf_counter() - t
-        fid = cfg.propagation.raytrace
-        warm = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed, None)
         t = time.perf_counter()
-        warm.trace(geo.bs_pos[:1], geo.ue.pos[:1], fid.rays_per_source)   # load + compile
+        warm = harness.loaded_tracer(geo.scene_xml, cfg)
+        harness.timed_links(warm, geo.bs_pos[:1], geo.ue.pos[:1])   # load + compile
         warm_s = time.perf_counter() - t
-        prop = trace(geo, cfg.propagation, cfg.seed, cache_dir=None)
+        prop, _ = harness.timed_trace(geo, cfg)
     s = prop.stats
     cov = {name: float(np.mean(c.has_path()[c.tx_index != NO_TX])) * 100.0
            for name, c in (("bs_ue", prop.bs_ue), ("bs_adv", prop.bs_adv), ("adv_ue", prop.adv_ue))}

@@ -12,7 +12,7 @@ what the kernels cost a point against the chain as it runs and against a wall-ti
 ``--cores`` cores: the floor a chain that spent nothing else (no interpreter, no copies, no
 elementwise NumPy) would still have.
 
-    .venv/bin/python scripts/bench_floor.py [CONFIG] [--points 20] [--target-s 60] [--cores 2]
+    .venv/bin/python benchmarks/bench_floor.py [CONFIG] [--points 20] [--target-s 60] [--cores 2]
 
 Not counted (so the floor is a lower bound): BLAS products, signatures, AES, NumPy's own
 FFTs, and the elementwise products the model is made of (the channel applied per RE, the
@@ -174,13 +174,13 @@ def main() -> int:
     if args.points < 1 or args.cores < 1 or args.target_s <= 0:
         print("error: --points, --cores, --target-s: must be positive", file=sys.stderr)
         return 2
-    from ab_chains import runner   # this folder's: a ScenarioRunner of a package on a config
+    import harness   # this folder's
     from veriloc_rt.errors import InputError
 
     install_hooks()
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            r = runner("veriloc_rt", args.config, None, Path(tmp))
+            r = harness.scenario_runner(args.config, None, Path(tmp))
         except InputError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2

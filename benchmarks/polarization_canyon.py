@@ -7,17 +7,17 @@ One setting per process (``--setting``), tracing the serving BS -> UE links of t
 pair is projected from the same polarimetric trace. Writes per-link path gains to a JSON file;
 ``--summary`` prints the markdown tables from several such files.
 
-    .venv/bin/python scripts/polarization_canyon.py --setting smooth --out smooth.json
-    .venv/bin/python scripts/polarization_canyon.py --summary smooth.json rough_diffuse.json
+    .venv/bin/python benchmarks/polarization_canyon.py --setting smooth --out smooth.json
+    .venv/bin/python benchmarks/polarization_canyon.py --summary smooth.json rough_diffuse.json
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import tempfile
-import time
+from dataclasses import replace
 
+import harness
 import numpy as np
 
 #: (BS port, UE port): the BS transmits, the UE receives
@@ -39,8 +39,6 @@ def measure(setting: str, points: int, rays: int | None, out: str) -> None:
     from veriloc_rt.backend import import_sionna
     from veriloc_rt.config import config_from_dict
     from veriloc_rt.propagation.cir import INTERACTION_DIFFRACTION, INTERACTION_DIFFUSE
-    from veriloc_rt.propagation.raytrace import LinkTracer, trace_links
-    from veriloc_rt.world.geometry import build_geometry
 
     materials, diffuse, single = SETTINGS[setting]
     rt_cfg = {"diffuse_reflection": diffuse, "materials": materials}
@@ -49,22 +47,17 @@ def measure(setting: str, points: int, rays: int | None, out: str) -> None:
     cfg = config_from_dict({"trajectory": {"num_points": points},
                             "propagation": {"raytrace": rt_cfg}})
     fid = cfg.propagation.raytrace
-    with tempfile.TemporaryDirectory() as tmp:
-        geo = build_geometry(cfg, tmp)
-        tracer = LinkTracer(geo.scene_xml, cfg.propagation.carrier_frequency_hz, fid, cfg.seed,
-                            cache_dir=None)
-        sionna = tracer.sionna_tracer()   # scene loading is not tracing
+    with harness.geometry(cfg) as geo:
+        tracer = harness.loaded_tracer(geo.scene_xml, cfg)
+        sionna = tracer.sionna_tracer()
         if single:   # the pre-polarimetric tracer: one 'V' port at each end (cost reference)
             rt = import_sionna()
             sionna.scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso",
                                                    polarization="V")
             sionna.scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern="iso",
                                                    polarization="V")
-        tx = geo.bs_pos[geo.serving].reshape(-1, 3)
-        rx = np.repeat(geo.ue.pos, 3, axis=0)
-        t0 = time.perf_counter()
-        raw = trace_links(tracer, tx, rx, True, fid.rays_per_source)
-        dt = time.perf_counter() - t0
+        tx, rx = harness.serving_links(geo)
+        raw, dt = harness.timed_links(tracer, tx, rx, replace(fid, direction="reciprocal"))
     res = {"setting": setting, "points": points, "links": len(tx), "rays": fid.rays_per_source,
            "unique_links": tracer.stats["links_traced"], "trace_s": dt,
            "s_per_link": dt / max(tracer.stats["links_traced"], 1),

@@ -9,7 +9,7 @@ each chain of each scenario the point needs) with the two versions alternating p
 in thread CPU time, over ``--passes`` passes (the order swapped each pass). Each point's results
 are compared (ToA, detection, fix, tag verdicts) and the differing points counted.
 
-    .venv/bin/python scripts/ab_chains.py OLD [--new REV] [CONFIG] [--points 60] [--start 0]
+    .venv/bin/python benchmarks/ab_chains.py OLD [--new REV] [CONFIG] [--points 60] [--start 0]
         [--passes 2]
 
 The copies import their own modules (the package imports its parts relatively); data files come
@@ -24,7 +24,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # as in the engine's worker processes
 
 import argparse  # noqa: E402
-import importlib  # noqa: E402
 import io  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
@@ -34,6 +33,7 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+import harness  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,18 +49,6 @@ def export(rev: str | None, dest: Path, name: str) -> None:
     with tarfile.open(fileobj=io.BytesIO(blob)) as tar:
         tar.extractall(dest, filter="data")
     (dest / "veriloc_rt").rename(dest / name)
-
-
-def runner(name: str, config: str | None, points: int | None, work: Path):
-    """A ScenarioRunner of package copy ``name`` on ``config``."""
-    cfgm = importlib.import_module(name + ".config")
-    eng = importlib.import_module(name + ".sim.engine")
-    run = importlib.import_module(name + ".sim.runner")
-    keys = importlib.import_module(name + ".sim.run_folder")
-    cfg = cfgm.with_overrides(cfgm.load_config(config), points=points)
-    geo = eng.build_geometry(cfg, work / ("scene_" + name))
-    prop = eng.compute_propagation(cfg, geo, None, "default", workers=1)
-    return run.ScenarioRunner(cfg, geo, prop, keys.run_keys(cfg, len(geo.bs_pos)))
 
 
 def same(a: dict, b: dict) -> bool:
@@ -93,7 +81,8 @@ def main() -> int:
         export(args.old, work, names[0])
         export(args.new, work, names[1])
         sys.path.insert(0, str(work))
-        runners = {n: runner(n, args.config, args.trajectory_points, work) for n in names}
+        runners = {n: harness.scenario_runner(args.config, args.trajectory_points, work, n)
+                   for n in names}
         last = runners[names[0]].geo.num_points
         if not 0 <= args.start < args.start + args.points <= last:
             print(f"error: --start/--points: points {args.start}..{args.start + args.points - 1} "
