@@ -254,18 +254,22 @@ LINKS_DOC = {
 #: per-scenario keys of metrics.json (scenario_metrics)
 METRICS_DOC = {
     "num_points": "points in the scenario's CSV",
-    "num_evaluated": "points the percentages count: every point for `none`, the attack window "
+    "num_evaluated": "points the shares count: every point for `none`, the attack window "
                      "for an attack",
-    "outcomes": "standard PRS: share of the evaluated points with each outcome, %",
-    "outcomes_encrypted": "the same with encrypted PRS (when `run.evaluate_encrypted`), %",
-    "correct_decision_rate": "per detector, %: for `none` the share of points *with a fix* "
+    "outcomes": "standard PRS: share of the evaluated points with each outcome, fraction "
+                "(0-1)",
+    "outcomes_encrypted": "the same with encrypted PRS (when `run.evaluate_encrypted`), "
+                          "fraction (0-1)",
+    "correct_decision_rate": "per detector, fraction (0-1): for `none` the share of points "
+                             "*with a fix* "
                              "that the detector accepts (DoS points are not false alarms, as "
                              "in the paper); for an attack the share of attack-window points "
                              "it rejects",
     "position_error_m": "percentiles p50 / p95 / p99.9 of the horizontal error over the "
                         "evaluated points with a fix, m (null without any)",
     "benign_phase_false_alarm_rate": "attack scenarios only: per detector, share of the points "
-                                     "outside the attack window, with a fix, that it rejects, %",
+                                     "outside the attack window, with a fix, that it rejects, "
+                                     "fraction (0-1)",
 }
 
 #: metrics.json top-level keys (engine.run writes them)
@@ -478,11 +482,11 @@ def _trp_column(c: str) -> str:
 def _montecarlo_column(c: str) -> str:
     for o in OUTCOMES:
         if c == o:
-            return f"share of `{o}` outcomes, standard PRS, %"
+            return f"share of `{o}` outcomes, standard PRS, fraction (0-1)"
         if c == f"{o}_enc":
-            return f"share of `{o}` outcomes, encrypted PRS, %"
+            return f"share of `{o}` outcomes, encrypted PRS, fraction (0-1)"
     if c in DETECTORS:
-        return f"correct-decision rate of {c}, %"
+        return f"correct-decision rate of {c}, fraction (0-1)"
     return _describe(MONTECARLO_DOC, c, "montecarlo.csv column")
 
 
@@ -508,13 +512,14 @@ def outputs_md() -> str:
            "`\"-inf\"` (`float(\"inf\")` and MATLAB's `str2double` read it back), and a "
            "not-a-number as `null` (no value), as is a percentage of no points.", "",
            "Units: a number is in SI units or in the unit its key's name ends with "
-           "(`_m`, `_s`, `_hz`, `_db`, `_mib`, `_pct` = percent). The two shares without a "
-           "unit in their name are fixed per block: under `scenarios.<name>` "
-           "(`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
-           "`benign_phase_false_alarm_rate`) every share is in **percent** (0-100, as the "
-           "paper's tables); under `roc` (`benign_accept`, `attack_reject`, "
-           "`false_alarm`, `min_benign_accept`, `auc`) every share is a **fraction** "
-           "(0-1), as ROC axes are. `timing_s` holds seconds only; counts and memory are in "
+           "(`_m`, `_s`, `_hz`, `_db`, `_dbm`, `_mib`, `_pct` = percent). Every other rate or "
+           "share is a **fraction** in [0, 1], in every block and file: under "
+           "`scenarios.<name>` (`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
+           "`benign_phase_false_alarm_rate`), under `roc` (`benign_accept`, "
+           "`attack_reject`, `false_alarm`, `min_benign_accept`, `auc`), in `montecarlo.csv` "
+           "and in `roc.csv`; percent appears only in printed tables and plot labels (and "
+           "in the paper's own figures, `veriloc_rt/report/paper.py`, which "
+           "`scripts/paper_table.py` compares in percent). `timing_s` holds seconds only; counts and memory are in "
            "`resources`. `run.json` records paths inside the run folder relative to it "
            "(`scene_xml`: `scene/scene.xml`), the package versions (`versions`) and "
            "`git_revision` (the commit of the package's git checkout, `-dirty` appended "

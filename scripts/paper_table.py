@@ -19,8 +19,11 @@ OUTCOMES = ("success", "large_error", "service_failure")
 
 
 def cell(paper: float, ours) -> tuple[str, bool]:
+    """``paper`` in percent (as published); ``ours`` a fraction (metrics.json), compared in
+    percent."""
     if ours is None:
         return f"{paper:.1f} / n/a", False
+    ours = 100.0 * ours
     ok = abs(ours - paper) <= tolerance(paper)
     return f"{paper:.1f} / {ours:.1f}{'' if ok else ' ✗'}", ok
 

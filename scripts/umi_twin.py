@@ -125,7 +125,7 @@ def main(argv=None) -> int:
     hm = [(r.detectors[m]["none"]["correct_decision_rate"].get("HMAC"))
           for r, m in ((res, "raytrace"), (res, tw), (matched, tw))]
     lines.append("| benign HMAC accepted, % | " + " | ".join(
-        "n/a" if v is None else f"{v:.1f}" for v in hm) + " |")
+        "n/a" if v is None else f"{100 * v:.1f}" for v in hm) + " |")   # fractions
     lines += ["", "Stochastic arm cost on this geometry (every link family of a run; least of "
               f"{args.repeats}):", "", "| model | mode | links | wall per link, us |",
               "| --- | --- | --- | --- |"]

@@ -175,10 +175,12 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
 
 
 def _pm(m: dict, group: str, key: str) -> str:
-    """'mean±half' of an aggregated metric, 11 characters."""
+    """'mean±half' of an aggregated share (a fraction in metrics.json), in percent, 11
+    characters."""
     v = (m.get(group) or {}).get(key)
     h = (m["ci95"].get(group) or {}).get(key)
-    text = "n/a" if v is None else f"{v:.1f}±{h:.1f}" if h is not None else f"{v:.1f}"
+    text = ("n/a" if v is None else f"{100 * v:.1f}±{100 * h:.1f}" if h is not None
+            else f"{100 * v:.1f}")
     return f"{text:>11s}"
 
 
@@ -204,7 +206,8 @@ def format_montecarlo(metrics: dict) -> str:
 
 
 def _cell(v) -> str:
-    return "   n/a" if v is None else f"{v:6.1f}"
+    """A share (a fraction in metrics.json) in percent, 6 characters."""
+    return "   n/a" if v is None else f"{100 * v:6.1f}"
 
 
 def format_metrics(metrics: dict) -> str:

@@ -131,9 +131,9 @@ def test_confidence_interval_by_hand():
     assert (mean, n) == (3.0, 5)
     assert half == pytest.approx(2.776 * math.sqrt(2.5 / 5), rel=T_TABLE_TOL)
     # None (undefined in a realisation) is left out; one value has no interval
-    mean, half, n = mean_ci([90.0, None, 100.0])
-    assert (mean, n) == (95.0, 2)
-    assert half == pytest.approx(12.706 * math.sqrt(50.0 / 2), rel=T_TABLE_TOL)
+    mean, half, n = mean_ci([0.9, None, 1.0])
+    assert mean == pytest.approx(0.95, abs=1e-15) and n == 2
+    assert half == pytest.approx(12.706 * math.sqrt(0.005 / 2), rel=T_TABLE_TOL)
     assert mean_ci([7.0]) == (7.0, None, 1)
     assert mean_ci([None]) == (None, None, 0)
 
@@ -142,14 +142,14 @@ def test_confidence_interval_by_hand():
                                        "outcomes": {"success": success},
                                        "correct_decision_rate": {"HMAC": hmac}}}}
 
-    agg = aggregate([m(90.0, 100.0), m(None, 50.0), m(100.0, 75.0)])
+    agg = aggregate([m(0.9, 1.0), m(None, 0.5), m(1.0, 0.75)])   # fractions
     s = agg["scenarios"]["none"]
     assert agg["realisations"] == s["realisations"] == 3 and s["num_points"] == 4
-    assert s["correct_decision_rate"]["HMAC"] == 95.0
+    assert s["correct_decision_rate"]["HMAC"] == pytest.approx(0.95, abs=1e-15)
     assert s["realisations_defined"]["correct_decision_rate"]["HMAC"] == 2
-    assert s["outcomes"]["success"] == 75.0
-    # s^2 = (625 + 625 + 0) / 2, t_{0.975,2} = 4.303
-    assert s["ci95"]["outcomes"]["success"] == pytest.approx(4.303 * math.sqrt(625.0 / 3),
+    assert s["outcomes"]["success"] == 0.75
+    # s^2 = (0.0625 + 0.0625 + 0) / 2, t_{0.975,2} = 4.303
+    assert s["ci95"]["outcomes"]["success"] == pytest.approx(4.303 * math.sqrt(0.0625 / 3),
                                                              rel=T_TABLE_TOL)
 
 

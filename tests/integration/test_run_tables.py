@@ -68,7 +68,7 @@ def test_load_run_matches_the_files(run_dir):
     for s in scenarios:
         for d, v in metrics["scenarios"][s]["correct_decision_rate"].items():
             row = sm[(sm.scenario == s) & (sm.metric == "correct_decision_rate") & (sm.item == d)]
-            assert row["value"].item() == v and row["unit"].item() == "%"
+            assert row["value"].item() == v and row["unit"].item() == "fraction"
     # the flattened metrics: every leaf once, numbers as floats
     assert t.metrics.loc[t.metrics.key == "scenarios.none.num_points", "value"].item() == 32
     uninf = set(metrics["roc"]["uninformative"])
@@ -147,7 +147,8 @@ def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
             if s != "none" and d in flagged:
                 assert h == 0.0, (d, s)     # no bar ...
             else:
-                assert h == sc[s]["correct_decision_rate"][d], (d, s)
+                # drawn in percent: 100 x the fraction, exactly as the plot computes it
+                assert h == 100.0 * sc[s]["correct_decision_rate"][d], (d, s)
     # ... and the label says why, once per flagged detector and attack scenario
     single = flagged & {"HMAC", "DigSig", "ABSA", "Handshake", "Tracking"}   # not KofN
     assert texts.count("uninf.") == len(single) * len(attacks)
@@ -180,7 +181,8 @@ def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
     for (bars, ticks), s in zip(captured["axes"], order):
         for model, heights in bars.items():
             for d, h in zip(("HMAC", "DigSig", "ABSA", "Handshake", "Tracking"), heights):
-                want = 0.0 if (s != "none" and d in flagged) else sc[s]["correct_decision_rate"][d]
+                want = (0.0 if (s != "none" and d in flagged)
+                        else 100.0 * sc[s]["correct_decision_rate"][d])   # drawn in percent
                 assert h == want, (model, s, d)
         assert ticks == [
             "HMAC", "DigSig", "ABSA", "Handshake", "Tracking"]

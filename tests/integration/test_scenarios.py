@@ -39,7 +39,8 @@ def _csv(path):
 
 
 def _pct(flags):
-    return 100.0 * sum(flags) / len(flags) if flags else None
+    """The share of true flags, a fraction (metrics.json's unit)."""
+    return sum(flags) / len(flags) if flags else None
 
 
 def check_run(res, out) -> None:

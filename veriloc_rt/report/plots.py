@@ -2,7 +2,8 @@
 
 Inputs are what the engine writes: ``<scenario>_results.csv`` (read with :func:`read_results_csv`)
 and the ``metrics.json`` dict ``{"scenarios": {scenario: {"outcomes": .., "outcomes_encrypted": ..,
-"correct_decision_rate": .., "position_error_m": ..}}}`` with values in percent. The figures follow
+"correct_decision_rate": .., "position_error_m": ..}}}`` with shares as fractions in [0, 1]
+(the figures draw them in percent). The figures follow
 the paper's Fig. "encrypted_PRS", Fig. "techniques" and Fig. "all_attacks".
 """
 
@@ -161,10 +162,11 @@ def plot_rates_ci(metrics: dict, path: str | Path, title: str | None = None) -> 
         x = np.arange(len(names), dtype=float)
         for k, det in enumerate(DETECTORS):
             xs = x + (k - (len(DETECTORS) - 1) / 2.0) * width
-            mean = np.array([np.nan if det in _uninformative(metrics, s)   # no attack bar
-                             else _num(sc[s]["correct_decision_rate"].get(det)) for s in names])
-            half = np.nan_to_num([_num(sc[s]["ci95"].get("correct_decision_rate", {}).get(det))
-                                  for s in names])
+            mean = 100.0 * np.array([np.nan if det in _uninformative(metrics, s)   # no bar
+                                     else _num(sc[s]["correct_decision_rate"].get(det))
+                                     for s in names])   # fractions, drawn in percent
+            half = 100.0 * np.nan_to_num([_num(sc[s]["ci95"].get("correct_decision_rate",
+                                                                 {}).get(det)) for s in names])
             half[np.isnan(mean)] = 0.0   # no bar, no error bar
             v = np.nan_to_num(mean)
             err = np.array([np.minimum(half, v), np.minimum(half, 100.0 - v)])  # [2, scenarios]
@@ -208,7 +210,7 @@ def plot_outcomes(metrics: dict, path: str | Path, title: str | None = None,
             x = start + np.arange(len(entries), dtype=float)
             bottom = np.zeros(len(entries))
             for o in OUTCOMES:
-                h = np.nan_to_num([_value(e, o) for _, e in entries])
+                h = 100.0 * np.nan_to_num([_value(e, o) for _, e in entries])  # fractions
                 ax.bar(x, h, 0.7, bottom=bottom, color=_OUTCOME_COLOURS[o], edgecolor="k",
                        label=labels[o] if gi == 0 else None)
                 bottom += h
@@ -259,8 +261,8 @@ def _draw_detection_rates(ax, metrics: dict, entries: list, reference: dict) -> 
     offsets = (np.arange(len(DETECTORS)) - (len(DETECTORS) - 1) / 2.0) * width
     xs = x[None, :] + offsets[:, None]  # [num_detectors, num_scenarios]
     uninf = [_uninformative(metrics, s) for s, _ in entries]
-    vals = np.array([[np.nan if d in u else _value(e, d) for (_, e), u in zip(entries, uninf)]
-                     for d in DETECTORS])
+    vals = 100.0 * np.array([[np.nan if d in u else _value(e, d)   # fractions, in percent
+                              for (_, e), u in zip(entries, uninf)] for d in DETECTORS])
     tags = [["uninf." if d in u else "n/a" for u in uninf] for d in DETECTORS]
     refs = np.array([[_value(reference.get(s) or {}, d) for s, _ in entries]
                      for d in DETECTORS])
@@ -694,7 +696,8 @@ def plot_comparison_detectors(detectors: dict, path: str | Path, title: str | No
             for k, m in enumerate(models):
                 rates = (detectors[m].get(s) or {}).get("correct_decision_rate") or {}
                 uninf = _uninformative(detectors[m], s)   # no bar: no detection to show
-                v = [np.nan if d in uninf else _value(rates, d) for d in DETECTORS]
+                v = [np.nan if d in uninf else 100.0 * _value(rates, d)   # fraction, in %
+                     for d in DETECTORS]
                 xk = x + (k - (len(models) - 1) / 2) * w
                 ax.bar(xk, np.nan_to_num(v), w,
                        color=[_DETECTOR_STYLE[d][1] for d in DETECTORS], hatch=hatches.get(m, "xx"),

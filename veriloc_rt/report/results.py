@@ -11,10 +11,12 @@ A row is flushed as soon as it exists: an interrupted run keeps every finished p
 
 Metrics (paper Sec. "Results and Discussion"):
 
-* ``outcomes`` [%]: success / large_error / service_failure over the *evaluated points*: every
-  point for ``none``, the attack window for an attack (the paper's FBS bar, 0.67 % success,
+Every share is a fraction in [0, 1] (percent only in printed tables and plot labels).
+
+* ``outcomes``: success / large_error / service_failure over the *evaluated points*: every
+  point for ``none``, the attack window for an attack (the paper's FBS bar, 0.67 % success = 0.0067,
   counts the attack phase only);
-* ``correct_decision_rate`` [%] per detector: for ``none`` the share of points *with a fix*
+* ``correct_decision_rate`` per detector: for ``none`` the share of points *with a fix*
   that the detector accepts (false alarms exclude DoS points, as the paper defines them); for
   an attack the share of attack-window points that the detector rejects;
 * ``position_error_m``: p50 / p95 / p99.9 of the horizontal error over the evaluated points
@@ -239,14 +241,16 @@ class ResultsWriter:
         self.close()
 
 
-def _pct(mask: np.ndarray, of: np.ndarray) -> float | None:
+def _share(mask: np.ndarray, of: np.ndarray) -> float | None:
+    """The fraction of the points ``of`` selects that ``mask`` holds, in [0, 1]; None (no
+    points)."""
     n = int(of.sum())
-    return float(100.0 * (mask & of).sum() / n) if n else None
+    return float((mask & of).sum() / n) if n else None
 
 
 def _outcomes(outcome: list[str], sel: np.ndarray) -> dict:
     o = np.asarray(outcome, dtype=object)
-    return {k: _pct(o == k, sel) for k in OUTCOMES}
+    return {k: _share(o == k, sel) for k in OUTCOMES}
 
 
 def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
@@ -264,7 +268,7 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
     names = detectors_of(rows)
     for d in names:
         valid = np.array([r.verdicts[d] for r in rows])
-        rates[d] = _pct(valid, sel & fix) if scenario == "none" else _pct(~valid, sel)
+        rates[d] = _share(valid, sel & fix) if scenario == "none" else _share(~valid, sel)
     out["correct_decision_rate"] = rates
     err = np.array([r.error_m for r in rows])[sel & fix]
     out["position_error_m"] = ({k: float(np.percentile(err, q)) for k, q in
@@ -273,7 +277,7 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
     if scenario != "none":  # the benign phases of an attack run (false alarms around the attack)
         ben = ~attack & fix
         out["benign_phase_false_alarm_rate"] = {
-            d: _pct(~np.array([r.verdicts[d] for r in rows]), ben) for d in names}
+            d: _share(~np.array([r.verdicts[d] for r in rows]), ben) for d in names}
     return out
 
 

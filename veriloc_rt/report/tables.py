@@ -10,7 +10,8 @@
 * ``metrics``: one row per leaf of ``metrics.json`` (``key`` its dotted path, ``value`` the
   number or NaN, ``text`` the string or ``""``);
 * ``scenario_metrics``: the ``scenarios.<name>`` shares and error percentiles, tidy
-  (``scenario, metric, item, value, unit``: ``%`` for the shares, ``m`` for the errors);
+  (``scenario, metric, item, value, unit``: ``fraction`` for the shares, in [0, 1], ``m``
+  for the errors);
 * ``roc``: every ``roc.csv`` vertex (``detector, attack, threshold, benign_accept,
   attack_reject``; thresholds ``inf``/``-inf`` at the ends);
 * ``operating_points``: ``roc.attacks.<attack>.<decision>`` with the detector's
@@ -43,9 +44,10 @@ EXPORT_FORMATS = ("parquet", "mat")
 _RESULTS = re.compile(r"^(?P<scenario>.+)_results\.csv$")
 _LINKS = re.compile(r"^(?P<scenario>.+)_links\.csv$")
 _REALISATION = re.compile(r"^realisation_(\d+)$")
-#: the unit of each ``scenarios.<name>`` group
-_UNITS = {"outcomes": "%", "outcomes_encrypted": "%", "correct_decision_rate": "%",
-          "benign_phase_false_alarm_rate": "%", "position_error_m": "m"}
+#: the unit of each ``scenarios.<name>`` group ("fraction": a share in [0, 1])
+_UNITS = {"outcomes": "fraction", "outcomes_encrypted": "fraction",
+          "correct_decision_rate": "fraction", "benign_phase_false_alarm_rate": "fraction",
+          "position_error_m": "m"}
 
 
 @dataclass

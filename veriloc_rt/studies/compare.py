@@ -320,6 +320,11 @@ def _f(v, nd=1) -> str:
     return "n/a" if v is None else f"{v:.{nd}f}"
 
 
+def _pc(v) -> str:
+    """A share (a fraction in metrics.json) in percent."""
+    return "n/a" if v is None else f"{100 * v:.1f}"
+
+
 def _twin_label(res: ComparisonResult) -> str:
     return f"TR 38.901 {tr38901.SCENARIO_NAMES[res.models[1]]}"
 
@@ -400,9 +405,9 @@ def markdown(res: ComparisonResult) -> str:
             if not m.get("num_points"):
                 continue
             uninf = set(m.get("uninformative_detectors") or ())   # no detection to show
-            rates = " | ".join("uninf." if d in uninf else _f(m["correct_decision_rate"].get(d))
+            rates = " | ".join("uninf." if d in uninf else _pc(m["correct_decision_rate"].get(d))
                                for d in DETECTORS)
-            outs = " | ".join(_f(m["outcomes"].get(o)) for o in OUTCOMES)
+            outs = " | ".join(_pc(m["outcomes"].get(o)) for o in OUTCOMES)
             L.append(f"| {scen} | {model} | {rates} | {outs} |")
     L += ["", "`uninf.`: a detector that accepts under `detectors.min_benign_accept` of the "
           "benign fixes; its rejections under attack are no detections."]

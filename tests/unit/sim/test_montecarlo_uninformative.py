@@ -4,6 +4,8 @@ its attack bars out."""
 
 from __future__ import annotations
 
+import pytest
+
 from veriloc_rt.cli import format_montecarlo
 from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.report import plots
@@ -11,11 +13,11 @@ from veriloc_rt.sim.montecarlo import aggregate
 
 
 def _metrics(flagged: list[str]) -> dict:
-    rates = {d: 100.0 for d in DETECTORS}
-    outcomes = {"success": 50.0, "large_error": 50.0, "service_failure": 0.0}
+    rates = {d: 1.0 for d in DETECTORS}   # fractions, as metrics.json holds them
+    outcomes = {"success": 0.5, "large_error": 0.5, "service_failure": 0.0}
     return {"scenarios": {
         "none": {"num_points": 8, "num_evaluated": 8, "outcomes": outcomes,
-                 "correct_decision_rate": {d: 90.0 for d in DETECTORS}},
+                 "correct_decision_rate": {d: 0.9 for d in DETECTORS}},
         "fbs": {"num_points": 8, "num_evaluated": 4, "outcomes": outcomes,
                 "correct_decision_rate": rates, "uninformative_detectors": flagged}}}
 
@@ -53,6 +55,7 @@ def test_flag_of_any_realisation_hides_the_mean_attack_rate(tmp_path):
         plots.plot_rates_ci(agg, tmp_path / "ci.png")
     finally:
         plots.figure = real
-    assert seen["bars"]["DigSig"] == [90.0, 0.0]   # none, fbs: no attack bar
-    assert seen["bars"]["HMAC"] == [90.0, 100.0]
+    # drawn in percent: 100 x the fractions (exact to one rounding)
+    assert seen["bars"]["DigSig"] == pytest.approx([90.0, 0.0], abs=1e-12)   # fbs: no bar
+    assert seen["bars"]["HMAC"] == pytest.approx([90.0, 100.0], abs=1e-12)
     assert seen["texts"].count("uninf.") == 1

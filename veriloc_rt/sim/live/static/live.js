@@ -103,7 +103,7 @@ function renderShares(st) {
     const o = (sc.metrics && sc.metrics.outcomes) || {};
     const stack = el("div", {class: "stack", title: sc.name});
     for (const k of st.outcomes) {
-      const v = o[k] || 0;
+      const v = 100 * (o[k] || 0);   // metrics hold fractions in [0, 1]
       if (v > 0) stack.append(el("div", {class: "s-" + k, style: "width:" + v + "%",
                                          title: k + " " + v.toFixed(1) + " %", text: v >= 12 ? v.toFixed(0) + "%" : ""}));
     }
@@ -117,7 +117,7 @@ function renderShares(st) {
     return el("tr", {}, el("td", {text: sc.name}),
               ...st.detectors.map(d => el("td", uninf.includes(d)
                 ? {text: "uninf.", title: d + " accepts too few benign fixes: its rejections here are no detections"}
-                : {text: r[d] === undefined || r[d] === null ? "–" : r[d].toFixed(1)})));
+                : {text: r[d] === undefined || r[d] === null ? "–" : (100 * r[d]).toFixed(1)})));
   });
   t.replaceChildren(head, ...rows);
 }
