@@ -267,6 +267,12 @@ METRICS_DOC = {
                              "it rejects",
     "position_error_m": "percentiles p50 / p95 / p99.9 of the horizontal error over the "
                         "evaluated points with a fix, m (null without any)",
+    "_ci95": "every share `<item>` of the groups above is followed by `<item>_ci95` = "
+             "`[lo, hi]`, its 95 % Clopper-Pearson interval over the points it counts "
+             "(`scipy.stats.binomtest(k, n).proportion_ci(method=\"exact\")`: the beta "
+             "quantiles; null without points; the points of one drive are correlated in time, "
+             "so this is the sampling error of these points, not of the scenario: "
+             "`run.realisations` gives the spread between drives and layouts)",
     "benign_phase_false_alarm_rate": "attack scenarios only: per detector, share of the points "
                                      "outside the attack window, with a fix, that it rejects, "
                                      "fraction (0-1)",
@@ -299,14 +305,22 @@ ROC_DOC = {
                         "(its CSV column), `accept` (`<=` or `>=`: valid iff statistic <= or >= "
                         "threshold), `threshold` (the configured one, in the statistic's unit; "
                         "`KofN`: k - 1 rejections), `benign_accept` (share of the benign points "
-                        "accepted at it), `uninformative` (`benign_accept` < "
+                        "accepted at it) and `benign_accept_ci95`, `uninformative` (`benign_accept` < "
                         "`min_benign_accept`); `NPFusion` is on the test indices",
     "uninformative": "the detectors flagged: their attack rejections are no detections (each "
                      "attack scenario repeats the list as `uninformative_detectors`, and the "
                      "printed table shows `uninf.` in their cells)",
     "attacks.<attack>.<name>": "`auc` (trapezoid area under the ROC over every observed "
                                "threshold), `threshold`, `benign_accept`, `attack_reject` (the "
-                               "configured threshold's operating point, a vertex of the curve); "
+                               "configured threshold's operating point, a vertex of the curve), "
+                               "`pd_at_false_alarm` (the detection rate at the curve's best "
+                               "vertex with false alarm <= `detectors.fusion.false_alarm`, "
+                               "whose false alarm is `false_alarm_at_pd`); each share and the "
+                               "AUC followed by `<key>_ci95` = `[lo, hi]`: Clopper-Pearson for "
+                               "`benign_accept` and `attack_reject`, a percentile bootstrap "
+                               "over the points (benign and attack points resampled "
+                               "separately, 1000 times, the named stream `bootstrap` of the "
+                               "seed) for `auc` and `pd_at_false_alarm`; "
                                "single detectors and `KofN` over every point, `NPFusion` over "
                                "the test indices",
     "fusion": "`k`, `false_alarm`, `split_block` (`detectors.fusion`), `fit_indices`, "
@@ -317,7 +331,8 @@ ROC_DOC = {
               "score's optimism on its own points), and `test.<attack>`: on the test indices, each "
               "decision's `auc` and its `attack_reject` at `false_alarm` <= the target (single "
               "detectors and `KofN` at their best threshold there, an oracle; `NPFusion` at its "
-              "calibrated threshold), and `best_single`",
+              "calibrated threshold; `false_alarm` and `attack_reject` each with its "
+              "Clopper-Pearson `_ci95`), and `best_single`",
 }
 
 #: timing_s keys besides the chain stages
@@ -338,17 +353,21 @@ TABLES_DOC = {
     "links": "row of a `<scenario>_links.csv` (per-TRP links), the same way (empty without "
              "such files)",
     "metrics": "leaf of `metrics.json`: `realisation`, `key` (dotted path, list items by "
-               "index), `value` (the number; `inf` for `\"inf\"`, NaN for null or text), "
+               "index; an interval `<key>_ci95` as `<key>_ci95.lo` and `<key>_ci95.hi`), "
+               "`value` (the number; `inf` for `\"inf\"`, NaN for null or text), "
                "`text` (a string or a list of strings joined by commas, else empty)",
     "scenario_metrics": "share or error percentile of `scenarios.<name>`: `realisation`, "
                         "`scenario`, `metric` (`outcomes`, `correct_decision_rate`, ...), "
-                        "`item` (outcome, detector or percentile), `value`, `unit` (`%` or "
-                        "`m`)",
+                        "`item` (outcome, detector or percentile), `value`, `ci95_lo`, "
+                        "`ci95_hi` (the share's 95 % interval; NaN for the percentiles), "
+                        "`unit` (`fraction` or `m`)",
     "roc": "vertex of `roc.csv`: `realisation`, `detector`, `attack`, `threshold`, "
            "`benign_accept`, `attack_reject`",
     "operating_points": "`roc.attacks.<attack>.<decision>`: `realisation`, `attack`, "
-                        "`detector`, `auc`, `threshold`, `benign_accept`, `attack_reject` "
-                        "(fractions), `uninformative` (the detector is flagged: its "
+                        "`detector`, `auc`, `threshold`, `benign_accept`, `attack_reject`, "
+                        "`pd_at_false_alarm` (fractions), `auc_ci95_lo`, `auc_ci95_hi`, ... "
+                        "(the 95 % interval of each but the threshold), `uninformative` (the "
+                        "detector is flagged: its "
                         "`attack_reject` is no detection)",
 }
 
@@ -445,8 +464,12 @@ def _metrics_rows() -> list[str]:
             keys.setdefault(k, v)
     out = []
     for k, v in keys.items():
-        sub = f" `{{{', '.join(v)}}}`" if isinstance(v, dict) else ""
+        names = [n for n in v if not n.endswith("_ci95")] if isinstance(v, dict) else []
+        sub = (f" `{{{', '.join(names)}}}`" + (" and each `<item>_ci95`"
+                                              if len(names) < len(v) else "")
+               if isinstance(v, dict) else "")
         out.append(f"| `{k}`{sub} | {_cell(_describe(METRICS_DOC, k, 'metrics.json key'))} |")
+    out.append(f"| `<group>.<item>_ci95` | {_cell(METRICS_DOC['_ci95'])} |")
     return out
 
 
@@ -607,7 +630,15 @@ def outputs_md() -> str:
             "files (its `run.json` reproduces it alone). The top folder gets `metrics.json` "
             "(the single-run keys, each the mean over the realisations where it is defined; "
             "per scenario `ci95`, the Student-t 95 % half-width in the same layout, null below "
-            "two realisations, `realisations_defined`, and `uninformative_detectors`: those "
+            "two realisations, and each share's `<item>_ci95` = `[mean - half, mean + half]` "
+            "clipped to [0, 1] (the spread between the realisations: each realisation's own "
+            "`metrics.json` holds its binomial interval over its points); `roc.attacks."
+            "<attack>.<decision>`: the mean `auc`, `pd_at_false_alarm`, `benign_accept`, "
+            "`attack_reject` over the realisations, each with a percentile-bootstrap "
+            "`<key>_ci95` over the realisations (1000 resamples, stream "
+            "`bootstrap-realisations` of the seed), `roc.false_alarm` the target and "
+            "`roc.uninformative` those flagged in any realisation; "
+            "`realisations_defined`, and `uninformative_detectors`: those "
             "flagged in any realisation, shown `uninf.` without a mean attack rate; `position_error_m` is the mean of "
             "the realisations' percentiles, not a pooled percentile), "
             "`montecarlo_detection_rates.png` (mean rates with CI bars), `outcomes.png`, "

@@ -81,6 +81,10 @@ def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
         assert "outcomes_encrypted" not in m
         for group in ("outcomes", "correct_decision_rate", "position_error_m"):
             for k, v in m[group].items():
+                if k.endswith("_ci95"):   # [mean -+ half] clipped to [0, 1]
+                    mean, half = m[group][k[:-5]], m["ci95"][group][k[:-5]]
+                    assert v == pytest.approx([max(0.0, mean - half), min(1.0, mean + half)])
+                    continue
                 a, b = (p["scenarios"][s][group][k] for p in per)
                 assert v == pytest.approx((a + b) / 2)
                 assert m["ci95"][group][k] == pytest.approx(12.706 * abs(a - b) / 2, rel=1e-4)
@@ -123,6 +127,43 @@ def test_realisation_zero_is_the_plain_run():
     r2 = realisation_config(cfg, 2)
     assert r2.topology.iteration == 5 and r2.run.realisations == 1 and r2.seed != cfg.seed
     assert realisation_config(cfg, 2) == r2  # derived from the seed: the same every time
+
+
+def test_scene_variants_cycle_over_the_realisations():
+    cfg = config_from_dict({**SMALL, "run": {**SMALL["run"], "realisations": 3,
+                                             "street_width_variants_m": [5, 20],
+                                             "height_jitter_variants_m": [0, 4, 8]}})
+    got = [(realisation_config(cfg, r).scene.street_width_m,
+            realisation_config(cfg, r).scene.height_jitter_m) for r in range(4)]
+    assert got == [(5.0, 0.0), (20.0, 4.0), (5.0, 8.0), (20.0, 0.0)]
+    r1 = realisation_config(cfg, 1)   # a single run: no variant list left
+    assert r1.run.street_width_variants_m == () == r1.run.height_jitter_variants_m
+    for bad, field in (({"street_width_variants_m": [1.0]}, "run.street_width_variants_m[0]"),
+                       ({"height_jitter_variants_m": [15.0]}, "run.height_jitter_variants_m[0]")):
+        with pytest.raises(InputError) as e:
+            config_from_dict({**SMALL, "run": {**SMALL["run"], **bad}})
+        assert e.value.field == field
+
+
+def test_roc_aggregate_is_the_mean_with_a_bootstrap_interval():
+    def m(auc_value):
+        return {"scenarios": {"none": {"num_points": 4, "num_evaluated": 4}},
+                "roc": {"uninformative": [], "fusion": {"false_alarm": 0.05},
+                        "attacks": {"fbs": {"HMAC": {"auc": auc_value, "pd_at_false_alarm": 1.0,
+                                                     "benign_accept": 0.9,
+                                                     "attack_reject": 1.0}}}}}
+
+    vals = [0.6, 0.7, 0.8, 0.9]
+    e = aggregate([m(v) for v in vals], seed=3)["roc"]["attacks"]["fbs"]["HMAC"]
+    assert e["auc"] == pytest.approx(0.75, abs=1e-15)
+    lo, hi = e["auc_ci95"]
+    # a mean of 4 resampled values lies between the smallest and the largest; its sd is
+    # 0.112 / sqrt(4) = 0.056, so its 2.5 % and 97.5 % percentiles lie about 0.11 from 0.75,
+    # past 0.7 and 0.8 (the discrete steps are 0.025)
+    assert 0.6 <= lo < 0.7 and 0.8 < hi <= 0.9
+    assert e["pd_at_false_alarm_ci95"] == [1.0, 1.0]   # no spread, no width
+    assert aggregate([m(v) for v in vals], seed=3)["roc"] == aggregate(
+        [m(v) for v in vals], seed=3)["roc"]   # seeded
 
 
 def test_confidence_interval_by_hand():

@@ -66,9 +66,14 @@ def test_load_run_matches_the_files(run_dir):
     # every scenario share, with its unit, equals metrics.json's
     sm = t.scenario_metrics
     for s in scenarios:
-        for d, v in metrics["scenarios"][s]["correct_decision_rate"].items():
+        rates = metrics["scenarios"][s]["correct_decision_rate"]
+        for d, v in rates.items():
+            if d.endswith("_ci95"):
+                continue
             row = sm[(sm.scenario == s) & (sm.metric == "correct_decision_rate") & (sm.item == d)]
             assert row["value"].item() == v and row["unit"].item() == "fraction"
+            assert [row["ci95_lo"].item(), row["ci95_hi"].item()] == rates[d + "_ci95"]
+        assert not sm["item"].str.endswith("_ci95").any()
     # the flattened metrics: every leaf once, numbers as floats
     assert t.metrics.loc[t.metrics.key == "scenarios.none.num_points", "value"].item() == 32
     uninf = set(metrics["roc"]["uninformative"])
@@ -78,6 +83,11 @@ def test_load_run_matches_the_files(run_dir):
     e = metrics["roc"]["attacks"]["fbs"]["ABSA"]
     row = op[(op.attack == "fbs") & (op.detector == "ABSA")]
     assert row["attack_reject"].item() == e["attack_reject"] and row["auc"].item() == e["auc"]
+    assert [row["auc_ci95_lo"].item(), row["auc_ci95_hi"].item()] == e["auc_ci95"]
+    assert row["pd_at_false_alarm"].item() == e["pd_at_false_alarm"]
+    # an interval is two numeric leaves of the flattened metrics
+    lo = t.metrics.loc[t.metrics.key == "roc.attacks.fbs.ABSA.auc_ci95.lo", "value"].item()
+    assert lo == e["auc_ci95"][0]
 
 
 def test_parquet_and_mat_round_trip(run_dir, tmp_path):
@@ -273,3 +283,4 @@ def test_save_cir_writes_the_run_cirs_for_sionna(tmp_path):
     assert main(["run", str(tmp_path / "c.json"), "--out", str(tmp_path / "r"), "-q",
                  "--force"]) == 0
     assert not list((tmp_path / "r").glob("cir_*.npz"))
+

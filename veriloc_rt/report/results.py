@@ -11,7 +11,9 @@ A row is flushed as soon as it exists: an interrupted run keeps every finished p
 
 Metrics (paper Sec. "Results and Discussion"):
 
-Every share is a fraction in [0, 1] (percent only in printed tables and plot labels).
+Every share is a fraction in [0, 1] (percent only in printed tables and plot labels), followed
+by its 95 % interval ``<key>_ci95`` = ``[lo, hi]`` (Clopper-Pearson over the points it counts:
+:mod:`.intervals`; null without points).
 
 * ``outcomes``: success / large_error / service_failure over the *evaluated points*: every
   point for ``none``, the attack window for an attack (the paper's FBS bar, 0.67 % success = 0.0067,
@@ -36,6 +38,7 @@ from ..fileio import atomic_output, naming
 from ..detectors.outcomes import DETECTORS, OUTCOMES, TRP_DETECTORS, PointRow
 from ..detectors.statistics import STAT_COLUMNS, TRP_STAT_COLUMNS
 from ..errors import short_repr
+from .intervals import binomial_ci, ci_suffix
 
 __all__ = ["CSV_COLUMNS", "TRP_COLUMNS", "TRP_DETECTOR_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
            "parse_rows", "detectors_of", "scenario_metrics", "results_path", "links_path"]
@@ -241,16 +244,22 @@ class ResultsWriter:
         self.close()
 
 
-def _share(mask: np.ndarray, of: np.ndarray) -> float | None:
-    """The fraction of the points ``of`` selects that ``mask`` holds, in [0, 1]; None (no
+def _shares(masks: dict, of: np.ndarray) -> dict:
+    """``{key: share}`` of each mask over the points ``of`` selects, each followed by its
+    Clopper-Pearson interval ``key_ci95`` (:func:`~.intervals.binomial_ci`; None without
     points)."""
     n = int(of.sum())
-    return float((mask & of).sum() / n) if n else None
+    out: dict = {}
+    for k, mask in masks.items():
+        hits = int((mask & of).sum())
+        out[k] = float(hits / n) if n else None
+        out[ci_suffix(k)] = binomial_ci(hits, n)
+    return out
 
 
 def _outcomes(outcome: list[str], sel: np.ndarray) -> dict:
     o = np.asarray(outcome, dtype=object)
-    return {k: _share(o == k, sel) for k in OUTCOMES}
+    return _shares({k: o == k for k in OUTCOMES}, sel)
 
 
 def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
@@ -264,20 +273,17 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
            "outcomes": _outcomes([r.outcome for r in rows], sel)}
     if all(r.outcome_enc is not None for r in rows):
         out["outcomes_encrypted"] = _outcomes([r.outcome_enc for r in rows], sel)
-    rates = {}
     names = detectors_of(rows)
-    for d in names:
-        valid = np.array([r.verdicts[d] for r in rows])
-        rates[d] = _share(valid, sel & fix) if scenario == "none" else _share(~valid, sel)
-    out["correct_decision_rate"] = rates
+    valid = {d: np.array([r.verdicts[d] for r in rows]) for d in names}
+    out["correct_decision_rate"] = (_shares(valid, sel & fix) if scenario == "none" else
+                                    _shares({d: ~v for d, v in valid.items()}, sel))
     err = np.array([r.error_m for r in rows])[sel & fix]
     out["position_error_m"] = ({k: float(np.percentile(err, q)) for k, q in
                                 (("p50", 50), ("p95", 95), ("p999", 99.9))} if err.size else
                                {"p50": None, "p95": None, "p999": None})
     if scenario != "none":  # the benign phases of an attack run (false alarms around the attack)
         ben = ~attack & fix
-        out["benign_phase_false_alarm_rate"] = {
-            d: _share(~np.array([r.verdicts[d] for r in rows]), ben) for d in names}
+        out["benign_phase_false_alarm_rate"] = _shares({d: ~v for d, v in valid.items()}, ben)
     return out
 
 
