@@ -249,6 +249,12 @@ LINKS_DOC = {
     "peak_snr_db": "the ToA correlation peak's SNR over its noise floor, dB, what the weighted "
                    "fit's range std comes from (`receiver.range_error_model`; empty when not "
                    "heard)",
+    "hmac_margin_db": "the HMAC tags' margin against their decoding threshold, dB: "
+                      "`snr_re_db` + 10 log10(UE antennas) - the waveform bench's threshold "
+                      "(-2.5 dB per RE after combining) - the multipath penalty (0 dB for "
+                      "the stochastic models' `pathloss_only`, 4.3 dB otherwise) "
+                      "([link budget](link-budget.md))",
+    "ds_margin_db": "the same for the DS tags (bench threshold -0.5 dB)",
 }
 
 #: per-scenario keys of metrics.json (scenario_metrics)
@@ -292,6 +298,15 @@ METRICS_TOP_DOC = {
                   "BS -> UE paths; with an attack the adversary's paths, relayed ones with both "
                   "shifts), Hz; `scan`: the UE's Doppler scan half-range that follows from it "
                   "(`receiver.doppler_scan`), Hz",
+    "link_budget": "the `none` scenario's links (else the first scenario's): `links`, "
+                   "`rx_antennas`, `tag_threshold_db` per scheme and `multipath_penalty_db` "
+                   "(the constants the margins use), `rx_power_dbm` and `snr_re_db` "
+                   "(p5/p50/p95 over the links), `heard_share` (the receiver's hearability "
+                   "test), `tag_verified_share`, `above_hmac_threshold_share`, "
+                   "`above_ds_threshold_share` (fractions, each with its Clopper-Pearson "
+                   "`_ci95`), `weakest_used_hmac_margin_db` and `weakest_used_ds_margin_db` "
+                   "(p5/p50/p95 over the points with a fix of the least margin among the TRPs "
+                   "the fix used) ([link budget](link-budget.md))",
     "roc": "the detection analysis (below): ROC, AUC and operating point per decision and "
            "attack, the uninformative flags, the fused decisions (absent without a `none` "
            "scenario and an attack scenario)",

@@ -271,6 +271,10 @@ def format_metrics(metrics: dict) -> str:
 
         lines.append(format_detection(metrics["roc"]))
         lines.append(format_roc_intervals(metrics["roc"]))
+    if "link_budget" in metrics:
+        from .report.link_budget import format_link_budget
+
+        lines.append(format_link_budget(metrics["link_budget"]))
     return "\n".join(lines)
 
 

@@ -284,3 +284,35 @@ def test_save_cir_writes_the_run_cirs_for_sionna(tmp_path):
                  "--force"]) == 0
     assert not list((tmp_path / "r").glob("cir_*.npz"))
 
+
+def test_link_budget_in_the_links_csv_and_metrics(run_dir):
+    """Each link's tag margins are its SNR per RE plus the 5-antenna combining gain less the
+    bench threshold and the multipath penalty; metrics.json's link_budget summarises the
+    ``none`` scenario's links CSV; the printed summary has its line."""
+    from veriloc_rt.cli import format_metrics
+    from veriloc_rt.report.link_budget import MULTIPATH_PENALTY_DB, TAG_THRESHOLD_DB
+
+    penalty = MULTIPATH_PENALTY_DB["single_path"]   # UMa 'pathloss_only': one path per link
+
+    links = _csv(run_dir / "none_links.csv")
+    snr = np.array([float(r["snr_re_db"]) for r in links])
+    for s in ("hmac", "ds"):
+        want = snr + 10 * np.log10(5) - TAG_THRESHOLD_DB[s] - penalty
+        np.testing.assert_allclose([float(r[f"{s}_margin_db"]) for r in links], want,
+                                   rtol=0, atol=1e-12)   # the same sums, written with repr
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    b = metrics["link_budget"]
+    assert b["scenario"] == "none" and b["links"] == len(links) == 32 * 3
+    assert b["multipath_penalty_db"] == penalty
+    assert b["snr_re_db"]["p50"] == pytest.approx(np.percentile(snr, 50), abs=1e-12)
+    heard = [r["heard"] == "1" for r in links]
+    assert b["heard_share"] == pytest.approx(sum(heard) / len(heard), abs=1e-15)
+    used = {}
+    for r in links:
+        if r["used"] == "1":
+            used.setdefault(r["index"], []).append(float(r["hmac_margin_db"]))
+    weakest = [min(v) for v in used.values()]
+    assert b["weakest_used_hmac_margin_db"]["p50"] == pytest.approx(np.percentile(weakest, 50),
+                                                                     abs=1e-12)
+    assert any(line.startswith("link budget (none, 96 links)")
+               for line in format_metrics(metrics).splitlines())

@@ -56,7 +56,7 @@ TRP_DETECTOR_COLUMNS = (*TRP_DETECTORS, *TRP_STAT_COLUMNS)
 #: columns of ``<scenario>_links.csv``: one row per point and TRP
 LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
                 "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
-                "excluded", "peak_snr_db")
+                "excluded", "peak_snr_db", "hmac_margin_db", "ds_margin_db")
 
 
 def results_path(out_dir: str | Path, scenario: str) -> Path:
