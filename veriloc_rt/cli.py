@@ -175,28 +175,27 @@ def _run_montecarlo(cfg, out: Path, args, workers: int) -> int:
 
 
 def _pm(m: dict, group: str, key: str) -> str:
-    """'mean±half' of an aggregated share (a fraction in metrics.json), in percent, 11
-    characters."""
-    v = (m.get(group) or {}).get(key)
-    h = (m["ci95"].get(group) or {}).get(key)
-    text = ("n/a" if v is None else f"{100 * v:.1f}±{100 * h:.1f}" if h is not None
-            else f"{100 * v:.1f}")
-    return f"{text:>11s}"
+    """'mean [lo-hi]' of an aggregated share (a fraction in metrics.json) and its interval over
+    the realisations (``<key>_ci95``), in percent, 15 characters."""
+    g = m.get(group) or {}
+    return f"{_cell(g.get(key), g.get(key + '_ci95')):>15s}"
 
 
 def format_montecarlo(metrics: dict) -> str:
-    """Mean ± 95 % CI half-width of the correct-decision rates and outcomes, as text."""
+    """Mean and 95 % interval over the realisations of the correct-decision rates and outcomes,
+    and of the AUC and detection rate at the target false alarm, as text."""
     from .detectors.outcomes import DETECTORS, OUTCOMES
 
-    lines = [f"mean ± 95 % confidence half-width over {metrics['realisations']} realisations"]
-    lines.append("scenario    " + " ".join(f"{d:>11s}" for d in DETECTORS)
-                 + "  | " + " ".join(f"{o:>11s}" for o in ("success", "large", "DoS"))
+    lines = [f"mean [95 % interval: mean -+ Student-t half-width, clipped to 0-100] over "
+             f"{metrics['realisations']} realisations"]
+    lines.append("scenario    " + " ".join(f"{d:>15s}" for d in DETECTORS)
+                 + "  | " + " ".join(f"{o:>15s}" for o in ("success", "large", "DoS"))
                  + " (std PRS)")
     for name, m in metrics["scenarios"].items():
         if not m.get("num_points"):
             continue
         uninf = m.get("uninformative_detectors") or ()
-        rates = " ".join(f"{'uninf.':>11s}" if d in uninf else _pm(m, "correct_decision_rate", d)
+        rates = " ".join(f"{'uninf.':>15s}" if d in uninf else _pm(m, "correct_decision_rate", d)
                          for d in DETECTORS)
         outs = " ".join(_pm(m, "outcomes", k) for k in OUTCOMES)
         lines.append(f"{name:11s} {rates}  | {outs}")
@@ -248,7 +247,7 @@ def format_metrics(metrics: dict) -> str:
     from .detectors.outcomes import DETECTORS, OUTCOMES
 
     sc = metrics["scenarios"]
-    w = 14
+    w = 15   # "100.0 [100-100]"
     lines = ["scenario     " + " ".join(f"{d:>{w}s}" for d in DETECTORS)
              + "  | " + " ".join(f"{o:>{w}s}" for o in ("success", "large", "DoS"))
              + " (std PRS) | " + " ".join(f"{o:>{w}s}" for o in ("success", "large", "DoS"))

@@ -51,7 +51,7 @@ def serial_mc(tmp_path_factory):
     f = _config(tmp / "mc.json", 2)
     r = cli("run", f, "--out", tmp / "serial", "--workers", "1")
     assert r.returncode == 0, r.stderr
-    assert "Monte Carlo: 2 realisations" in r.stdout and "±" in r.stdout
+    assert "Monte Carlo: 2 realisations" in r.stdout and "mean [95 % interval" in r.stdout
     return f, tmp / "serial"
 
 
