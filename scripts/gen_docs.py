@@ -550,11 +550,14 @@ def outputs_md() -> str:
            "`\"-inf\"` (`float(\"inf\")` and MATLAB's `str2double` read it back), and a "
            "not-a-number as `null` (no value), as is a percentage of no points.", "",
            "Units: a number is in SI units or in the unit its key's name ends with "
-           "(`_m`, `_s`, `_hz`, `_db`, `_dbm`, `_mib`, `_pct` = percent). Every other rate or "
+           "(`_m`, `_s`, `_hz`, `_db`, `_dbm`, `_mib`; `_pct` = percent, left only in the "
+           "benchmark's `bench.json` and `bench.csv`). Every other rate or "
            "share is a **fraction** in [0, 1], in every block and file: under "
            "`scenarios.<name>` (`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
            "`benign_phase_false_alarm_rate`), under `roc` (`benign_accept`, "
-           "`attack_reject`, `false_alarm`, `min_benign_accept`, `auc`), in `montecarlo.csv` "
+           "`attack_reject`, `false_alarm`, `min_benign_accept`, `auc`), under `link_budget`, "
+           "in `propagation_summary.json` and `comparison.json` (`links_with_path_share`, "
+           "`los_share`, `fix_rate`), in `montecarlo.csv` "
            "and in `roc.csv`; percent appears only in printed tables and plot labels (and "
            "in the paper's own figures, `veriloc_rt/report/paper.py`, which "
            "`scripts/paper_table.py` compares in percent). `timing_s` holds seconds only; counts and memory are in "
@@ -578,8 +581,9 @@ def outputs_md() -> str:
            "(relative to the run folder). `--resume` compares its config with the new one |",
            "| `propagation_summary.json` | the scene (buildings or triangles, BSs, points, the "
            "UE's path length and mean speed) and, per link set (`bs_to_ue`, `bs_to_adversary`, "
-           "`adversary_to_ue`), links, share with a path, LoS share, paths per link, rms delay "
-           "spread p50/p95, first-path excess delay p50/p95, share of diffraction-only paths; "
+           "`adversary_to_ue`), `links`, `links_with_path_share`, `los_share` (fractions), "
+           "`paths_per_link_mean`, rms delay spread p50/p95, first-path excess delay p50/p95, "
+           "`diffraction_path_share` (fraction of the paths that are diffraction-only); "
            "`raytrace_stats` (tracer calls, cache hits, links traced, tracing seconds) |",
            "| `outcomes.png` | outcome shares per scenario, standard and encrypted PRS |",
            "| `detection_rates.png` | correct-decision rate per detector and scenario; dashed: "

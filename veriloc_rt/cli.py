@@ -129,9 +129,11 @@ def _run(cfg, out: Path, args) -> int:
           f"(mean speed {s['ue_speed_mps_mean']:.1f} m/s), propagation: {cfg.propagation.model}")
     for name in ("bs_to_ue", "bs_to_adversary", "adversary_to_ue"):
         d = s[name]
-        line = f"{name:16s} links {d['links']:5d}  with path {d['links_with_path_pct']:5.1f} %"
-        if "los_pct" in d:
-            line += (f"  LoS {d['los_pct']:5.1f} %  paths/link {d['paths_per_link_mean']:5.1f}"
+        line = (f"{name:16s} links {d['links']:5d}  with path "
+                f"{100 * d['links_with_path_share']:5.1f} %")   # fractions, printed in %
+        if "los_share" in d:
+            line += (f"  LoS {100 * d['los_share']:5.1f} %  paths/link "
+                     f"{d['paths_per_link_mean']:5.1f}"
                      f"  DS p50 {d['delay_spread_ns_p50']:6.1f} ns")
         print(line)
     print(format_metrics(res.metrics))
