@@ -139,10 +139,15 @@ def test_scene_variants_cycle_over_the_realisations():
     r1 = realisation_config(cfg, 1)   # a single run: no variant list left
     assert r1.run.street_width_variants_m == () == r1.run.height_jitter_variants_m
     for bad, field in (({"street_width_variants_m": [1.0]}, "run.street_width_variants_m[0]"),
+                       # jitter as large as the 15 m mean height
                        ({"height_jitter_variants_m": [15.0]}, "run.height_jitter_variants_m[0]")):
         with pytest.raises(InputError) as e:
             config_from_dict({**SMALL, "run": {**SMALL["run"], **bad}})
         assert e.value.field == field
+    with pytest.raises(InputError) as e:   # a mesh scene has no street width to vary
+        config_from_dict({**SMALL, "scene": {"source": "scene.xml"},
+                          "run": {**SMALL["run"], "street_width_variants_m": [5.0]}})
+    assert e.value.field == "run.street_width_variants_m"
 
 
 def test_roc_aggregate_is_the_mean_with_a_bootstrap_interval():
