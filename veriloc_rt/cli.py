@@ -205,6 +205,11 @@ def format_montecarlo(metrics: dict) -> str:
                  "uninformative in at least one realisation")
     if metrics.get("roc"):
         lines.append(format_roc_intervals(metrics["roc"]))
+    if metrics.get("link_budget"):
+        from .report.link_budget import format_link_budget
+
+        lines.append(format_link_budget(metrics["link_budget"]) + " (means over the "
+                     "realisations)")
     return "\n".join(lines)
 
 

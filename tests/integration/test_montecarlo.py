@@ -226,3 +226,19 @@ def test_realisations_is_validated(value, words):
         config_from_dict({"run": {"realisations": value}})
     assert exc.value.field == "run.realisations"
     assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_link_budget_aggregate_by_hand():
+    def m(heard, p50):
+        return {"scenarios": {"none": {"num_points": 4, "num_evaluated": 4}},
+                "link_budget": {"scenario": "none", "links": 12, "rx_antennas": 5,
+                                "tag_threshold_db": {"hmac": -2.5}, "multipath_penalty_db": 0.0,
+                                "heard_share": heard, "heard_share_ci95": [0.0, 1.0],
+                                "snr_re_db": {"p5": -10.0, "p50": p50, "p95": 10.0}}}
+
+    b = aggregate([m(0.5, -1.0), m(1.0, 3.0)])["link_budget"]
+    assert b["links"] == 24 and b["realisations"] == 2 and b["rx_antennas"] == 5
+    assert b["snr_re_db"] == {"p5": -10.0, "p50": 1.0, "p95": 10.0}   # means of the percentiles
+    assert b["heard_share"] == 0.75
+    # t_{0.975,1} s / sqrt 2 = 12.706 x 0.3536 / 1.414 = 3.18: clipped to [0, 1]
+    assert b["heard_share_ci95"] == [0.0, 1.0]

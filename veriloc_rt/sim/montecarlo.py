@@ -165,6 +165,35 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL, seed: int = 
     roc = _aggregate_roc(per_realisation, seed, level)
     if roc:
         out["roc"] = roc
+    budget = _aggregate_link_budget(per_realisation, level)
+    if budget:
+        out["link_budget"] = budget
+    return out
+
+
+def _aggregate_link_budget(per_realisation: list[dict], level: float) -> dict:
+    """The ``link_budget`` block of a Monte Carlo: the realisations' constants (thresholds,
+    penalty, antennas, scenario), ``links`` summed, each share the mean over the realisations
+    with its ``_ci95`` (Student-t, clipped to [0, 1], as the scenarios' shares) and each
+    percentile the mean of the realisations' (not a pooled percentile); empty when no
+    realisation has one."""
+    blocks = [m.get("link_budget") for m in per_realisation if m.get("link_budget")]
+    if not blocks:
+        return {}
+    first = blocks[0]
+    out: dict = {k: first[k] for k in ("scenario", "rx_antennas", "tag_threshold_db",
+                                       "multipath_penalty_db") if k in first}
+    out["links"] = int(sum(b.get("links", 0) for b in blocks))
+    out["realisations"] = len(blocks)
+    for k, v in first.items():
+        if k in out or k.endswith(CI_SUFFIX):
+            continue
+        if isinstance(v, dict) and all(q in v for q in ("p5", "p50", "p95")):
+            out[k] = {q: mean_ci([(b.get(k) or {}).get(q) for b in blocks], level)[0]
+                      for q in ("p5", "p50", "p95")}
+        elif k.endswith("_share"):
+            mean, half, _ = mean_ci([b.get(k) for b in blocks], level)
+            out[k], out[ci_suffix(k)] = mean, _clipped(mean, half)
     return out
 
 
