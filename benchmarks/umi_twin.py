@@ -92,8 +92,8 @@ def main(argv=None) -> int:
     for cond, name in (("all", "all"), ("los", "LoS"), ("nlos", "NLoS")):
         a, b = ch["raytrace"][cond], ch[tw][cond]
         lines.append(f"| {name}: links (with a path) | {a.get('links')} "
-                     f"({a.get('links_with_path_pct', 0):.0f} %) | {b.get('links')} "
-                     f"({b.get('links_with_path_pct', 0):.0f} %) | |")
+                     f"({100 * a.get('links_with_path_share', 0):.0f} %) | {b.get('links')} "
+                     f"({100 * b.get('links_with_path_share', 0):.0f} %) | |")
         ref = "" if cond == "all" else (f"{tab[cond]['pathloss_db']:.1f} at "
                                         f"{tab['d_2d_m'][cond]:.0f} m")
         lines.append(f"| {name}: path loss, dB, p50 [p10, p90] | "
@@ -120,12 +120,12 @@ def main(argv=None) -> int:
                       ("toa_bias_los_m", "ToA bias, LoS links, p50 / p95, m"),
                       ("toa_bias_nlos_m", "ToA bias, NLoS links, p50 / p95, m")):
         lines.append(f"| {name} | {pq(e_rt, key)} | {pq(e_tw, key)} | {pq(e_m, key)} |")
-    lines.append(f"| DL fix rate, % | {e_rt['fix_rate_pct']:.1f} | {e_tw['fix_rate_pct']:.1f} | "
-                 f"{e_m['fix_rate_pct']:.1f} |")
+    lines.append(f"| DL fix rate, % | {100 * e_rt['fix_rate']:.1f} | {100 * e_tw['fix_rate']:.1f} | "
+                 f"{100 * e_m['fix_rate']:.1f} |")
     hm = [(r.detectors[m]["none"]["correct_decision_rate"].get("HMAC"))
           for r, m in ((res, "raytrace"), (res, tw), (matched, tw))]
     lines.append("| benign HMAC accepted, % | " + " | ".join(
-        "n/a" if v is None else f"{v:.1f}" for v in hm) + " |")
+        "n/a" if v is None else f"{100 * v:.1f}" for v in hm) + " |")   # fractions
     lines += ["", "Stochastic arm cost on this geometry (every link family of a run; least of "
               f"{args.repeats}):", "", "| model | mode | links | wall per link, us |",
               "| --- | --- | --- | --- |"]

@@ -256,23 +256,39 @@ LINKS_DOC = {
     "peak_snr_db": "the ToA correlation peak's SNR over its noise floor, dB, what the weighted "
                    "fit's range std comes from (`receiver.range_error_model`; empty when not "
                    "heard)",
+    "hmac_margin_db": "the HMAC tags' margin against their decoding threshold, dB: "
+                      "`snr_re_db` + 10 log10(UE antennas) - the waveform bench's threshold "
+                      "(-2.5 dB per RE after combining) - the multipath penalty (0 dB for "
+                      "the stochastic models' `pathloss_only`, 4.3 dB otherwise) "
+                      "([link budget](link-budget.md))",
+    "ds_margin_db": "the same for the DS tags (bench threshold -0.5 dB)",
 }
 
 #: per-scenario keys of metrics.json (scenario_metrics)
 METRICS_DOC = {
     "num_points": "points in the scenario's CSV",
-    "num_evaluated": "points the percentages count: every point for `none`, the attack window "
+    "num_evaluated": "points the shares count: every point for `none`, the attack window "
                      "for an attack",
-    "outcomes": "standard PRS: share of the evaluated points with each outcome, %",
-    "outcomes_encrypted": "the same with encrypted PRS (when `run.evaluate_encrypted`), %",
-    "correct_decision_rate": "per detector, %: for `none` the share of points *with a fix* "
+    "outcomes": "standard PRS: share of the evaluated points with each outcome, fraction "
+                "(0-1)",
+    "outcomes_encrypted": "the same with encrypted PRS (when `run.evaluate_encrypted`), "
+                          "fraction (0-1)",
+    "correct_decision_rate": "per detector, fraction (0-1): for `none` the share of points "
+                             "*with a fix* "
                              "that the detector accepts (DoS points are not false alarms, as "
                              "in the paper); for an attack the share of attack-window points "
                              "it rejects",
     "position_error_m": "percentiles p50 / p95 / p99.9 of the horizontal error over the "
                         "evaluated points with a fix, m (null without any)",
+    "_ci95": "every share `<item>` of the groups above is followed by `<item>_ci95` = "
+             "`[lo, hi]`, its 95 % Clopper-Pearson interval over the points it counts "
+             "(`scipy.stats.binomtest(k, n).proportion_ci(method=\"exact\")`: the beta "
+             "quantiles; null without points; the points of one drive are correlated in time, "
+             "so this is the sampling error of these points, not of the scenario: "
+             "`run.realisations` gives the spread between drives and layouts)",
     "benign_phase_false_alarm_rate": "attack scenarios only: per detector, share of the points "
-                                     "outside the attack window, with a fix, that it rejects, %",
+                                     "outside the attack window, with a fix, that it rejects, "
+                                     "fraction (0-1)",
 }
 
 #: metrics.json top-level keys (engine.run writes them)
@@ -289,6 +305,15 @@ METRICS_TOP_DOC = {
                   "BS -> UE paths; with an attack the adversary's paths, relayed ones with both "
                   "shifts), Hz; `scan`: the UE's Doppler scan half-range that follows from it "
                   "(`receiver.doppler_scan`), Hz",
+    "link_budget": "the `none` scenario's links (else the first scenario's): `links`, "
+                   "`rx_antennas`, `tag_threshold_db` per scheme and `multipath_penalty_db` "
+                   "(the constants the margins use), `rx_power_dbm` and `snr_re_db` "
+                   "(p5/p50/p95 over the links), `heard_share` (the receiver's hearability "
+                   "test), `tag_verified_share`, `above_hmac_threshold_share`, "
+                   "`above_ds_threshold_share` (fractions, each with its Clopper-Pearson "
+                   "`_ci95`), `weakest_used_hmac_margin_db` and `weakest_used_ds_margin_db` "
+                   "(p5/p50/p95 over the points with a fix of the least margin among the TRPs "
+                   "the fix used) ([link budget](link-budget.md))",
     "roc": "the detection analysis (below): ROC, AUC and operating point per decision and "
            "attack, the uninformative flags, the fused decisions (absent without a `none` "
            "scenario and an attack scenario)",
@@ -302,14 +327,22 @@ ROC_DOC = {
                         "(its CSV column), `accept` (`<=` or `>=`: valid iff statistic <= or >= "
                         "threshold), `threshold` (the configured one, in the statistic's unit; "
                         "`KofN`: k - 1 rejections), `benign_accept` (share of the benign points "
-                        "accepted at it), `uninformative` (`benign_accept` < "
+                        "accepted at it) and `benign_accept_ci95`, `uninformative` (`benign_accept` < "
                         "`min_benign_accept`); `NPFusion` is on the test indices",
     "uninformative": "the detectors flagged: their attack rejections are no detections (each "
                      "attack scenario repeats the list as `uninformative_detectors`, and the "
                      "printed table shows `uninf.` in their cells)",
     "attacks.<attack>.<name>": "`auc` (trapezoid area under the ROC over every observed "
                                "threshold), `threshold`, `benign_accept`, `attack_reject` (the "
-                               "configured threshold's operating point, a vertex of the curve); "
+                               "configured threshold's operating point, a vertex of the curve), "
+                               "`pd_at_false_alarm` (the detection rate at the curve's best "
+                               "vertex with false alarm <= `detectors.fusion.false_alarm`, "
+                               "whose false alarm is `false_alarm_at_pd`); each share and the "
+                               "AUC followed by `<key>_ci95` = `[lo, hi]`: Clopper-Pearson for "
+                               "`benign_accept` and `attack_reject`, a percentile bootstrap "
+                               "over the points (benign and attack points resampled "
+                               "separately, 1000 times, the named stream `bootstrap` of the "
+                               "seed) for `auc` and `pd_at_false_alarm`; "
                                "single detectors and `KofN` over every point, `NPFusion` over "
                                "the test indices",
     "fusion": "`k`, `false_alarm`, `split_block` (`detectors.fusion`), `fit_indices`, "
@@ -320,7 +353,8 @@ ROC_DOC = {
               "score's optimism on its own points), and `test.<attack>`: on the test indices, each "
               "decision's `auc` and its `attack_reject` at `false_alarm` <= the target (single "
               "detectors and `KofN` at their best threshold there, an oracle; `NPFusion` at its "
-              "calibrated threshold), and `best_single`",
+              "calibrated threshold; `false_alarm` and `attack_reject` each with its "
+              "Clopper-Pearson `_ci95`), and `best_single`",
 }
 
 #: timing_s keys besides the chain stages
@@ -341,17 +375,21 @@ TABLES_DOC = {
     "links": "row of a `<scenario>_links.csv` (per-TRP links), the same way (empty without "
              "such files)",
     "metrics": "leaf of `metrics.json`: `realisation`, `key` (dotted path, list items by "
-               "index), `value` (the number; `inf` for `\"inf\"`, NaN for null or text), "
+               "index; an interval `<key>_ci95` as `<key>_ci95.lo` and `<key>_ci95.hi`), "
+               "`value` (the number; `inf` for `\"inf\"`, NaN for null or text), "
                "`text` (a string or a list of strings joined by commas, else empty)",
     "scenario_metrics": "share or error percentile of `scenarios.<name>`: `realisation`, "
                         "`scenario`, `metric` (`outcomes`, `correct_decision_rate`, ...), "
-                        "`item` (outcome, detector or percentile), `value`, `unit` (`%` or "
-                        "`m`)",
+                        "`item` (outcome, detector or percentile), `value`, `ci95_lo`, "
+                        "`ci95_hi` (the share's 95 % interval; NaN for the percentiles), "
+                        "`unit` (`fraction` or `m`)",
     "roc": "vertex of `roc.csv`: `realisation`, `detector`, `attack`, `threshold`, "
            "`benign_accept`, `attack_reject`",
     "operating_points": "`roc.attacks.<attack>.<decision>`: `realisation`, `attack`, "
-                        "`detector`, `auc`, `threshold`, `benign_accept`, `attack_reject` "
-                        "(fractions), `uninformative` (the detector is flagged: its "
+                        "`detector`, `auc`, `threshold`, `benign_accept`, `attack_reject`, "
+                        "`pd_at_false_alarm` (fractions), `auc_ci95_lo`, `auc_ci95_hi`, ... "
+                        "(the 95 % interval of each but the threshold), `uninformative` (the "
+                        "detector is flagged: its "
                         "`attack_reject` is no detection)",
 }
 
@@ -448,8 +486,12 @@ def _metrics_rows() -> list[str]:
             keys.setdefault(k, v)
     out = []
     for k, v in keys.items():
-        sub = f" `{{{', '.join(v)}}}`" if isinstance(v, dict) else ""
+        names = [n for n in v if not n.endswith("_ci95")] if isinstance(v, dict) else []
+        sub = (f" `{{{', '.join(names)}}}`" + (" and each `<item>_ci95`"
+                                              if len(names) < len(v) else "")
+               if isinstance(v, dict) else "")
         out.append(f"| `{k}`{sub} | {_cell(_describe(METRICS_DOC, k, 'metrics.json key'))} |")
+    out.append(f"| `<group>.<item>_ci95` | {_cell(METRICS_DOC['_ci95'])} |")
     return out
 
 
@@ -485,11 +527,11 @@ def _trp_column(c: str) -> str:
 def _montecarlo_column(c: str) -> str:
     for o in OUTCOMES:
         if c == o:
-            return f"share of `{o}` outcomes, standard PRS, %"
+            return f"share of `{o}` outcomes, standard PRS, fraction (0-1)"
         if c == f"{o}_enc":
-            return f"share of `{o}` outcomes, encrypted PRS, %"
+            return f"share of `{o}` outcomes, encrypted PRS, fraction (0-1)"
     if c in DETECTORS:
-        return f"correct-decision rate of {c}, %"
+        return f"correct-decision rate of {c}, fraction (0-1)"
     return _describe(MONTECARLO_DOC, c, "montecarlo.csv column")
 
 
@@ -515,13 +557,17 @@ def outputs_md() -> str:
            "`\"-inf\"` (`float(\"inf\")` and MATLAB's `str2double` read it back), and a "
            "not-a-number as `null` (no value), as is a percentage of no points.", "",
            "Units: a number is in SI units or in the unit its key's name ends with "
-           "(`_m`, `_s`, `_hz`, `_db`, `_mib`, `_pct` = percent). The two shares without a "
-           "unit in their name are fixed per block: under `scenarios.<name>` "
-           "(`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
-           "`benign_phase_false_alarm_rate`) every share is in **percent** (0-100, as the "
-           "paper's tables); under `roc` (`benign_accept`, `attack_reject`, "
-           "`false_alarm`, `min_benign_accept`, `auc`) every share is a **fraction** "
-           "(0-1), as ROC axes are. `timing_s` holds seconds only; counts and memory are in "
+           "(`_m`, `_s`, `_hz`, `_db`, `_dbm`, `_mib`; `_pct` = percent, left only in the "
+           "benchmark's `bench.json` and `bench.csv`). Every other rate or "
+           "share is a **fraction** in [0, 1], in every block and file: under "
+           "`scenarios.<name>` (`outcomes`, `outcomes_encrypted`, `correct_decision_rate`, "
+           "`benign_phase_false_alarm_rate`), under `roc` (`benign_accept`, "
+           "`attack_reject`, `false_alarm`, `min_benign_accept`, `auc`), under `link_budget`, "
+           "in `propagation_summary.json` and `comparison.json` (`links_with_path_share`, "
+           "`los_share`, `fix_rate`), in `montecarlo.csv` "
+           "and in `roc.csv`; percent appears only in printed tables and plot labels (and "
+           "in the paper's own figures, `veriloc_rt/report/paper.py`, which "
+           "`scripts/paper_table.py` compares in percent). `timing_s` holds seconds only; counts and memory are in "
            "`resources`. `run.json` records paths inside the run folder relative to it "
            "(`scene_xml`: `scene/scene.xml`), the package versions (`versions`) and "
            "`git_revision` (the commit of the package's git checkout, `-dirty` appended "
@@ -542,8 +588,9 @@ def outputs_md() -> str:
            "(relative to the run folder). `--resume` compares its config with the new one |",
            "| `propagation_summary.json` | the scene (buildings or triangles, BSs, points, the "
            "UE's path length and mean speed) and, per link set (`bs_to_ue`, `bs_to_adversary`, "
-           "`adversary_to_ue`), links, share with a path, LoS share, paths per link, rms delay "
-           "spread p50/p95, first-path excess delay p50/p95, share of diffraction-only paths; "
+           "`adversary_to_ue`), `links`, `links_with_path_share`, `los_share` (fractions), "
+           "`paths_per_link_mean`, rms delay spread p50/p95, first-path excess delay p50/p95, "
+           "`diffraction_path_share` (fraction of the paths that are diffraction-only); "
            "`raytrace_stats` (tracer calls, cache hits, links traced, tracing seconds) |",
            "| `outcomes.png` | outcome shares per scenario, standard and encrypted PRS |",
            "| `detection_rates.png` | correct-decision rate per detector and scenario; dashed: "
@@ -611,7 +658,17 @@ def outputs_md() -> str:
             "files (its `run.json` reproduces it alone). The top folder gets `metrics.json` "
             "(the single-run keys, each the mean over the realisations where it is defined; "
             "per scenario `ci95`, the Student-t 95 % half-width in the same layout, null below "
-            "two realisations, `realisations_defined`, and `uninformative_detectors`: those "
+            "two realisations, and each share's `<item>_ci95` = `[mean - half, mean + half]` "
+            "clipped to [0, 1] (the spread between the realisations: each realisation's own "
+            "`metrics.json` holds its binomial interval over its points); `roc.attacks."
+            "<attack>.<decision>`: the mean `auc`, `pd_at_false_alarm`, `benign_accept`, "
+            "`attack_reject` over the realisations, each with a percentile-bootstrap "
+            "`<key>_ci95` over the realisations (1000 resamples, stream "
+            "`bootstrap-realisations` of the seed), `roc.false_alarm` the target and "
+            "`roc.uninformative` those flagged in any realisation; `link_budget`: each "
+            "share the mean with its clipped Student-t `_ci95`, each percentile the mean of "
+            "the realisations', `links` summed; "
+            "`realisations_defined`, and `uninformative_detectors`: those "
             "flagged in any realisation, shown `uninf.` without a mean attack rate; `position_error_m` is the mean of "
             "the realisations' percentiles, not a pooled percentile), "
             "`montecarlo_detection_rates.png` (mean rates with CI bars), `outcomes.png`, "

@@ -190,12 +190,12 @@ def test_compare_files_and_numbers(compare_out):
         assert ch["links"] == 8 * 3
         assert ch["links"] == data["channel"][model]["los"]["links"] + \
             data["channel"][model]["nlos"]["links"]
-        assert 0.0 <= ch["links_with_path_pct"] <= 100.0
+        assert 0.0 <= ch["links_with_path_share"] <= 1.0
         assert set(data["detectors"][model]) == {"none", "fbs", "meaconing", "jamming"}
         err = data["errors"][model]
         assert err["position_error_m"]["n"] <= 8
     # UMa draws every link with paths; the table values are the standard's
-    assert data["channel"]["uma"]["all"]["links_with_path_pct"] == 100.0
+    assert data["channel"]["uma"]["all"]["links_with_path_share"] == 1.0
     assert data["channel"]["tr38901_table"]["scenario"] == "uma"
     assert data["channel"]["tr38901_table"]["los"]["k_db"] == 9.0
     pts = _rows(compare_out / "comparison_points.csv")

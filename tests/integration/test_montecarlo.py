@@ -51,7 +51,7 @@ def serial_mc(tmp_path_factory):
     f = _config(tmp / "mc.json", 2)
     r = cli("run", f, "--out", tmp / "serial", "--workers", "1")
     assert r.returncode == 0, r.stderr
-    assert "Monte Carlo: 2 realisations" in r.stdout and "±" in r.stdout
+    assert "Monte Carlo: 2 realisations" in r.stdout and "mean [95 % interval" in r.stdout
     return f, tmp / "serial"
 
 
@@ -81,6 +81,10 @@ def test_two_worker_local_cluster_gives_the_serial_result(serial_mc, tmp_path):
         assert "outcomes_encrypted" not in m
         for group in ("outcomes", "correct_decision_rate", "position_error_m"):
             for k, v in m[group].items():
+                if k.endswith("_ci95"):   # [mean -+ half] clipped to [0, 1]
+                    mean, half = m[group][k[:-5]], m["ci95"][group][k[:-5]]
+                    assert v == pytest.approx([max(0.0, mean - half), min(1.0, mean + half)])
+                    continue
                 a, b = (p["scenarios"][s][group][k] for p in per)
                 assert v == pytest.approx((a + b) / 2)
                 assert m["ci95"][group][k] == pytest.approx(12.706 * abs(a - b) / 2, rel=1e-4)
@@ -125,15 +129,57 @@ def test_realisation_zero_is_the_plain_run():
     assert realisation_config(cfg, 2) == r2  # derived from the seed: the same every time
 
 
+def test_scene_variants_cycle_over_the_realisations():
+    cfg = config_from_dict({**SMALL, "run": {**SMALL["run"], "realisations": 3,
+                                             "street_width_variants_m": [5, 20],
+                                             "height_jitter_variants_m": [0, 4, 8]}})
+    got = [(realisation_config(cfg, r).scene.street_width_m,
+            realisation_config(cfg, r).scene.height_jitter_m) for r in range(4)]
+    assert got == [(5.0, 0.0), (20.0, 4.0), (5.0, 8.0), (20.0, 0.0)]
+    r1 = realisation_config(cfg, 1)   # a single run: no variant list left
+    assert r1.run.street_width_variants_m == () == r1.run.height_jitter_variants_m
+    for bad, field in (({"street_width_variants_m": [1.0]}, "run.street_width_variants_m[0]"),
+                       # jitter as large as the 15 m mean height
+                       ({"height_jitter_variants_m": [15.0]}, "run.height_jitter_variants_m[0]")):
+        with pytest.raises(InputError) as e:
+            config_from_dict({**SMALL, "run": {**SMALL["run"], **bad}})
+        assert e.value.field == field
+    with pytest.raises(InputError) as e:   # a mesh scene has no street width to vary
+        config_from_dict({**SMALL, "scene": {"source": "scene.xml"},
+                          "run": {**SMALL["run"], "street_width_variants_m": [5.0]}})
+    assert e.value.field == "run.street_width_variants_m"
+
+
+def test_roc_aggregate_is_the_mean_with_a_bootstrap_interval():
+    def m(auc_value):
+        return {"scenarios": {"none": {"num_points": 4, "num_evaluated": 4}},
+                "roc": {"uninformative": [], "fusion": {"false_alarm": 0.05},
+                        "attacks": {"fbs": {"HMAC": {"auc": auc_value, "pd_at_false_alarm": 1.0,
+                                                     "benign_accept": 0.9,
+                                                     "attack_reject": 1.0}}}}}
+
+    vals = [0.6, 0.7, 0.8, 0.9]
+    e = aggregate([m(v) for v in vals], seed=3)["roc"]["attacks"]["fbs"]["HMAC"]
+    assert e["auc"] == pytest.approx(0.75, abs=1e-15)
+    lo, hi = e["auc_ci95"]
+    # a mean of 4 resampled values lies between the smallest and the largest; its sd is
+    # 0.112 / sqrt(4) = 0.056, so its 2.5 % and 97.5 % percentiles lie about 0.11 from 0.75,
+    # past 0.7 and 0.8 (the discrete steps are 0.025)
+    assert 0.6 <= lo < 0.7 and 0.8 < hi <= 0.9
+    assert e["pd_at_false_alarm_ci95"] == [1.0, 1.0]   # no spread, no width
+    assert aggregate([m(v) for v in vals], seed=3)["roc"] == aggregate(
+        [m(v) for v in vals], seed=3)["roc"]   # seeded
+
+
 def test_confidence_interval_by_hand():
     # 1..5: mean 3, s^2 = (4+1+0+1+4)/4 = 2.5, half = t_{0.975,4} * sqrt(2.5) / sqrt(5)
     mean, half, n = mean_ci([1, 2, 3, 4, 5])
     assert (mean, n) == (3.0, 5)
     assert half == pytest.approx(2.776 * math.sqrt(2.5 / 5), rel=T_TABLE_TOL)
     # None (undefined in a realisation) is left out; one value has no interval
-    mean, half, n = mean_ci([90.0, None, 100.0])
-    assert (mean, n) == (95.0, 2)
-    assert half == pytest.approx(12.706 * math.sqrt(50.0 / 2), rel=T_TABLE_TOL)
+    mean, half, n = mean_ci([0.9, None, 1.0])
+    assert mean == pytest.approx(0.95, abs=1e-15) and n == 2
+    assert half == pytest.approx(12.706 * math.sqrt(0.005 / 2), rel=T_TABLE_TOL)
     assert mean_ci([7.0]) == (7.0, None, 1)
     assert mean_ci([None]) == (None, None, 0)
 
@@ -142,14 +188,14 @@ def test_confidence_interval_by_hand():
                                        "outcomes": {"success": success},
                                        "correct_decision_rate": {"HMAC": hmac}}}}
 
-    agg = aggregate([m(90.0, 100.0), m(None, 50.0), m(100.0, 75.0)])
+    agg = aggregate([m(0.9, 1.0), m(None, 0.5), m(1.0, 0.75)])   # fractions
     s = agg["scenarios"]["none"]
     assert agg["realisations"] == s["realisations"] == 3 and s["num_points"] == 4
-    assert s["correct_decision_rate"]["HMAC"] == 95.0
+    assert s["correct_decision_rate"]["HMAC"] == pytest.approx(0.95, abs=1e-15)
     assert s["realisations_defined"]["correct_decision_rate"]["HMAC"] == 2
-    assert s["outcomes"]["success"] == 75.0
-    # s^2 = (625 + 625 + 0) / 2, t_{0.975,2} = 4.303
-    assert s["ci95"]["outcomes"]["success"] == pytest.approx(4.303 * math.sqrt(625.0 / 3),
+    assert s["outcomes"]["success"] == 0.75
+    # s^2 = (0.0625 + 0.0625 + 0) / 2, t_{0.975,2} = 4.303
+    assert s["ci95"]["outcomes"]["success"] == pytest.approx(4.303 * math.sqrt(0.0625 / 3),
                                                              rel=T_TABLE_TOL)
 
 
@@ -180,3 +226,19 @@ def test_realisations_is_validated(value, words):
         config_from_dict({"run": {"realisations": value}})
     assert exc.value.field == "run.realisations"
     assert words in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_link_budget_aggregate_by_hand():
+    def m(heard, p50):
+        return {"scenarios": {"none": {"num_points": 4, "num_evaluated": 4}},
+                "link_budget": {"scenario": "none", "links": 12, "rx_antennas": 5,
+                                "tag_threshold_db": {"hmac": -2.5}, "multipath_penalty_db": 0.0,
+                                "heard_share": heard, "heard_share_ci95": [0.0, 1.0],
+                                "snr_re_db": {"p5": -10.0, "p50": p50, "p95": 10.0}}}
+
+    b = aggregate([m(0.5, -1.0), m(1.0, 3.0)])["link_budget"]
+    assert b["links"] == 24 and b["realisations"] == 2 and b["rx_antennas"] == 5
+    assert b["snr_re_db"] == {"p5": -10.0, "p50": 1.0, "p95": 10.0}   # means of the percentiles
+    assert b["heard_share"] == 0.75
+    # t_{0.975,1} s / sqrt 2 = 12.706 x 0.3536 / 1.414 = 3.18: clipped to [0, 1]
+    assert b["heard_share_ci95"] == [0.0, 1.0]

@@ -35,7 +35,7 @@ def test_run_on_an_imported_extract(tmp_path, monkeypatch):
               "scene/osm/streets.json", "metrics.json", "roc.csv"):
         assert (tmp_path / "r" / f).is_file(), f
     s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
-    assert s["num_points"] == 5 and s["bs_to_ue"]["links_with_path_pct"] > 50
+    assert s["num_points"] == 5 and s["bs_to_ue"]["links_with_path_share"] > 0.5
     m = json.loads((tmp_path / "r" / "metrics.json").read_text())
     assert set(m["scenarios"]) == {"none", "fbs", "meaconing", "jamming"}
     # the drive followed the extract's streets, clear of its buildings

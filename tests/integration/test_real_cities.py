@@ -143,7 +143,7 @@ def test_short_traced_run_on_a_cropped_bundled_scene(tmp_path):
         assert (r / f"{name}_results.csv").read_text().count("\n") == 1 + 4   # header + points
     s = json.loads((r / "propagation_summary.json").read_text())
     assert s["num_points"] == 4 and s["num_buildings"] > 0
-    assert s["bs_to_ue"]["links_with_path_pct"] > 0
+    assert s["bs_to_ue"]["links_with_path_share"] > 0
     assert (r / "scene" / "scene.xml").is_file()
     assert (r / "scene_top_view.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -35,7 +35,7 @@ def test_run_uma(tmp_path):
     cfg.write_text(json.dumps({"propagation": {"model": "uma"}, "trajectory": {"num_points": 20}}))
     assert main(["run", str(cfg), "--out", str(tmp_path / "r")]) == 0
     s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
-    assert s["bs_to_ue"]["links_with_path_pct"] == 100.0
+    assert s["bs_to_ue"]["links_with_path_share"] == 1.0
     # the chain's stages partition each chain call: their sum cannot exceed the calls' total
     t = json.loads((tmp_path / "r" / "metrics.json").read_text())["timing_s"]
     stages = [t[f"{k}_total"] for k in STAGES]
@@ -62,7 +62,7 @@ def test_run_external_scene_with_csv(tmp_path, monkeypatch):
     s = json.loads((tmp_path / "r" / "propagation_summary.json").read_text())
     # num_buildings: the mini canyon's XML holds all its blocks in one building shape
     assert s["num_points"] == 8 and s["num_buildings"] == 1 and s["num_triangles"] > 100
-    assert s["bs_to_ue"]["links_with_path_pct"] > 50
+    assert s["bs_to_ue"]["links_with_path_share"] > 0.5
 
 
 def test_run_uma_six_trps(tmp_path):

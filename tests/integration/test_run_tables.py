@@ -64,9 +64,14 @@ def test_load_run_matches_the_files(run_dir):
     # every scenario share, with its unit, equals metrics.json's
     sm = t.scenario_metrics
     for s in scenarios:
-        for d, v in metrics["scenarios"][s]["correct_decision_rate"].items():
+        rates = metrics["scenarios"][s]["correct_decision_rate"]
+        for d, v in rates.items():
+            if d.endswith("_ci95"):
+                continue
             row = sm[(sm.scenario == s) & (sm.metric == "correct_decision_rate") & (sm.item == d)]
-            assert row["value"].item() == v and row["unit"].item() == "%"
+            assert row["value"].item() == v and row["unit"].item() == "fraction"
+            assert [row["ci95_lo"].item(), row["ci95_hi"].item()] == rates[d + "_ci95"]
+        assert not sm["item"].str.endswith("_ci95").any()
     # the flattened metrics: every leaf once, numbers as floats
     assert t.metrics.loc[t.metrics.key == "scenarios.none.num_points", "value"].item() == 32
     uninf = set(metrics["roc"]["uninformative"])
@@ -76,6 +81,11 @@ def test_load_run_matches_the_files(run_dir):
     e = metrics["roc"]["attacks"]["fbs"]["ABSA"]
     row = op[(op.attack == "fbs") & (op.detector == "ABSA")]
     assert row["attack_reject"].item() == e["attack_reject"] and row["auc"].item() == e["auc"]
+    assert [row["auc_ci95_lo"].item(), row["auc_ci95_hi"].item()] == e["auc_ci95"]
+    assert row["pd_at_false_alarm"].item() == e["pd_at_false_alarm"]
+    # an interval is two numeric leaves of the flattened metrics
+    lo = t.metrics.loc[t.metrics.key == "roc.attacks.fbs.ABSA.auc_ci95.lo", "value"].item()
+    assert lo == e["auc_ci95"][0]
 
 
 def test_parquet_and_mat_round_trip(run_dir, tmp_path):
@@ -146,7 +156,8 @@ def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
             if s != "none" and d in flagged:
                 assert h == 0.0, (d, s)     # no bar ...
             else:
-                assert h == sc[s]["correct_decision_rate"][d], (d, s)
+                # drawn in percent: 100 x the fraction, exactly as the plot computes it
+                assert h == 100.0 * sc[s]["correct_decision_rate"][d], (d, s)
     # ... and the label says why, once per flagged detector and attack scenario
     single = flagged & {"HMAC", "DigSig", "ABSA", "Handshake", "Tracking"}   # not KofN
     assert texts.count("uninf.") == len(single) * len(attacks)
@@ -179,7 +190,8 @@ def test_no_attack_rate_for_an_uninformative_detector(run_dir, tmp_path):
     for (bars, ticks), s in zip(captured["axes"], order):
         for model, heights in bars.items():
             for d, h in zip(("HMAC", "DigSig", "ABSA", "Handshake", "Tracking"), heights):
-                want = 0.0 if (s != "none" and d in flagged) else sc[s]["correct_decision_rate"][d]
+                want = (0.0 if (s != "none" and d in flagged)
+                        else 100.0 * sc[s]["correct_decision_rate"][d])   # drawn in percent
                 assert h == want, (model, s, d)
         assert ticks == [
             "HMAC", "DigSig", "ABSA", "Handshake", "Tracking"]
@@ -358,3 +370,36 @@ def test_save_cir_writes_the_run_cirs_for_sionna(tmp_path):
     assert main(["run", str(tmp_path / "c.json"), "--out", str(tmp_path / "r"), "-q",
                  "--force"]) == 0
     assert not list((tmp_path / "r").glob("cir_*.npz"))
+
+
+def test_link_budget_in_the_links_csv_and_metrics(run_dir):
+    """Each link's tag margins are its SNR per RE plus the 5-antenna combining gain less the
+    bench threshold and the multipath penalty; metrics.json's link_budget summarises the
+    ``none`` scenario's links CSV; the printed summary has its line."""
+    from veriloc_rt.cli import format_metrics
+    from veriloc_rt.report.link_budget import MULTIPATH_PENALTY_DB, TAG_THRESHOLD_DB
+
+    penalty = MULTIPATH_PENALTY_DB["single_path"]   # UMa 'pathloss_only': one path per link
+
+    links = _csv(run_dir / "none_links.csv")
+    snr = np.array([float(r["snr_re_db"]) for r in links])
+    for s in ("hmac", "ds"):
+        want = snr + 10 * np.log10(5) - TAG_THRESHOLD_DB[s] - penalty
+        np.testing.assert_allclose([float(r[f"{s}_margin_db"]) for r in links], want,
+                                   rtol=0, atol=1e-12)   # the same sums, written with repr
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    b = metrics["link_budget"]
+    assert b["scenario"] == "none" and b["links"] == len(links) == 32 * 3
+    assert b["multipath_penalty_db"] == penalty
+    assert b["snr_re_db"]["p50"] == pytest.approx(np.percentile(snr, 50), abs=1e-12)
+    heard = [r["heard"] == "1" for r in links]
+    assert b["heard_share"] == pytest.approx(sum(heard) / len(heard), abs=1e-15)
+    used = {}
+    for r in links:
+        if r["used"] == "1":
+            used.setdefault(r["index"], []).append(float(r["hmac_margin_db"]))
+    weakest = [min(v) for v in used.values()]
+    assert b["weakest_used_hmac_margin_db"]["p50"] == pytest.approx(np.percentile(weakest, 50),
+                                                                     abs=1e-12)
+    assert any(line.startswith("link budget (none, 96 links)")
+               for line in format_metrics(metrics).splitlines())

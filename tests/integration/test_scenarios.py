@@ -38,8 +38,21 @@ def _csv(path):
         return list(csv.DictReader(fh))
 
 
+def _clopper_pearson(flags):
+    """The exact 95 % interval of the share of true flags from the beta quantiles (Clopper &
+    Pearson 1934), None without flags; rel 1e-9 against binomtest's root finding."""
+    from scipy.stats import beta
+
+    n, k = len(flags), sum(flags)
+    if not n:
+        return None
+    return [0.0 if k == 0 else beta.ppf(0.025, k, n - k + 1),
+            1.0 if k == n else beta.ppf(0.975, k + 1, n - k)]
+
+
 def _pct(flags):
-    return 100.0 * sum(flags) / len(flags) if flags else None
+    """The share of true flags, a fraction (metrics.json's unit)."""
+    return sum(flags) / len(flags) if flags else None
 
 
 def check_run(res, out) -> None:
@@ -59,6 +72,8 @@ def check_run(res, out) -> None:
         sel = rows if scenario == "none" else [r for r in rows if r["attack"] == "1"]
         for k in OUTCOMES:
             assert m["outcomes"][k] == pytest.approx(_pct([r["outcome"] == k for r in sel]))
+            assert m["outcomes"][k + "_ci95"] == pytest.approx(
+                _clopper_pearson([r["outcome"] == k for r in sel]), rel=1e-9, abs=1e-15)
         for d in DETECTORS:
             if scenario == "none":
                 fixes = [r for r in sel if r["outcome"] != "service_failure"]
@@ -66,6 +81,10 @@ def check_run(res, out) -> None:
             else:
                 want = _pct([r[d] == "0" for r in sel])
             assert m["correct_decision_rate"][d] == pytest.approx(want)
+            flags = ([r[d] == "1" for r in fixes] if scenario == "none"
+                     else [r[d] == "0" for r in sel])
+            assert m["correct_decision_rate"][d + "_ci95"] == pytest.approx(
+                _clopper_pearson(flags), rel=1e-9, abs=1e-15)
         for r in sel:
             i = int(r["index"])
             if scenario == "jamming" and adv_path[i]:

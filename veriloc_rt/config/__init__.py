@@ -69,6 +69,15 @@ class Config:
 
     def validate(self, path: str) -> None:
         """Checks across sections (each section checked its own fields already)."""
+        for name in ("street_width_variants_m", "height_jitter_variants_m"):
+            if getattr(self.run, name) and self.scene.source != "canyon":
+                raise bad_value(f"run.{name}", list(getattr(self.run, name)),
+                                "[] unless scene.source is 'canyon' (the procedural scene)")
+        for i, v in enumerate(self.run.height_jitter_variants_m):
+            if v >= self.scene.building_height_m:
+                raise bad_value(f"run.height_jitter_variants_m[{i}]", v,
+                                f"a value < scene.building_height_m "
+                                f"({self.scene.building_height_m:g})")
         n = self.topology.num_trps
         if self.nr.num_bs != n:
             raise bad_value("nr.comb_offsets", list(self.nr.comb_offsets),

@@ -50,8 +50,22 @@ class RunConfig:
                               "from the seed; realisation 0 is the plain run); metrics.json then "
                               "holds the mean and 95 % confidence interval over them",
                               lo=1, hi=100_000)
+    street_width_variants_m: tuple[float, ...] = param(
+        (), "scene variants of a Monte Carlo (procedural canyon only): realisation r uses "
+        "scene.street_width_m = this list's entry r mod its length (2..100 m each); [] keeps "
+        "scene.street_width_m")
+    height_jitter_variants_m: tuple[float, ...] = param(
+        (), "scene variants of a Monte Carlo (procedural canyon only): realisation r uses "
+        "scene.height_jitter_m = this list's entry r mod its length (0..200 m each, below "
+        "scene.building_height_m; each realisation draws its own heights from its seed); [] "
+        "keeps scene.height_jitter_m")
 
     def validate(self, path: str = "run") -> None:
+        for name, lo, hi in (("street_width_variants_m", 2.0, 100.0),
+                             ("height_jitter_variants_m", 0.0, 200.0)):
+            for i, v in enumerate(getattr(self, name)):
+                if not lo <= v <= hi:
+                    raise bad_value(f"{path}.{name}[{i}]", v, f"a value >= {lo:g} and <= {hi:g}")
         if not self.scenarios:
             raise bad_value(f"{path}.scenarios", list(self.scenarios), "at least one scenario")
         if len(set(self.scenarios)) != len(self.scenarios):

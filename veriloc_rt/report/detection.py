@@ -22,6 +22,12 @@ is :mod:`.roc`, the fusion's :mod:`.fusion`.
   scores, its ROC and operating point on the last third (the *test* points) only. ``fusion.test`` compares it, on those same test
   points, with every single detector and the vote at their best threshold for that false-alarm
   rate (chosen on the test points: an oracle in the single detectors' favour).
+
+Intervals (:mod:`.intervals`): every share (``benign_accept``, ``attack_reject``,
+``false_alarm``) has a sibling ``<key>_ci95``, Clopper-Pearson over the points it counts; each
+decision's ``auc`` and ``pd_at_false_alarm`` (its detection rate at the best vertex with false
+alarm <= ``detectors.fusion.false_alarm``, that false alarm in ``false_alarm_at_pd``) have a
+percentile bootstrap over the points (stream ``("bootstrap", decision, attack)`` of the seed).
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from ..detectors.outcomes import DETECTORS, TRP_DETECTORS
 from ..detectors.statistics import STATISTICS, TRP_STATISTICS, accepts, configured_thresholds
 from ..rng import stream
 from .fusion import CALIBRATE, FIT, TEST, NaiveBayesLR, kofn_votes, np_threshold, split_by_index
+from .intervals import binomial_ci, bootstrap_roc_ci, ci_suffix
 from .roc import RocCurve, auc, detection_at_false_alarm, operating_point, roc_curve
 
 log = logging.getLogger(__name__)
@@ -44,6 +51,8 @@ __all__ = ["FUSED", "ROC_COLUMNS", "DetectionAnalysis", "analyse_detection"]
 
 #: the fused decisions' names, after :data:`DETECTORS` in every table
 FUSED = ("KofN", "NPFusion")
+#: the attacks' numbers in the named bootstrap streams
+_ATTACK = {"fbs": 1, "meaconing": 2, "jamming": 3}
 #: roc.csv columns
 ROC_COLUMNS = ("detector", "attack", "threshold", "benign_accept", "attack_reject")
 
@@ -91,10 +100,23 @@ class DetectionAnalysis:
         return out
 
 
-def _entry(curve: RocCurve, threshold: float, benign, attack) -> dict:
-    ba, ar = operating_point(benign, attack, threshold, curve.accept)
-    return {"auc": auc(curve), "threshold": threshold, "benign_accept": ba,
-            "attack_reject": ar}
+def _entry(curve: RocCurve, threshold: float, benign, attack, alpha: float,
+           rng: np.random.Generator) -> dict:
+    """One decision's entry under ``roc.attacks.<attack>``: AUC, operating point at
+    ``threshold``, detection rate at false alarm <= ``alpha`` (the best vertex), each with its
+    95 % interval (:mod:`.intervals`: binomial for the operating point's shares, bootstrap over
+    the points from ``rng`` for the AUC and the detection rate)."""
+    b, a = np.asarray(benign), np.asarray(attack)
+    ba, ar = operating_point(b, a, threshold, curve.accept)
+    _, fa, pd = detection_at_false_alarm(curve, alpha)
+    auc_ci, pd_ci = bootstrap_roc_ci(b, a, curve.accept, alpha, rng)
+    return {"auc": auc(curve), ci_suffix("auc"): auc_ci, "threshold": threshold,
+            "benign_accept": ba,
+            ci_suffix("benign_accept"): binomial_ci(round(ba * b.size), b.size),
+            "attack_reject": ar,
+            ci_suffix("attack_reject"): binomial_ci(round(ar * a.size), a.size),
+            "pd_at_false_alarm": pd, ci_suffix("pd_at_false_alarm"): pd_ci,
+            "false_alarm_at_pd": fa}
 
 
 def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
@@ -124,17 +146,20 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
     names["KofN"] = (kofn_votes(benign.valid), {s: kofn_votes(attack[s].valid) for s in attacks},
                      "<=", float(k - 1))
     summary: dict = {}
-    for name, (b, a_by, acc, t) in names.items():
-        ba = float(accepts(b, t, acc).mean())
+    alpha = det.fusion.false_alarm
+    for j, (name, (b, a_by, acc, t)) in enumerate(names.items()):
+        n_ok = int(accepts(b, t, acc).sum())
+        ba = n_ok / b.size
         summary[name] = {"statistic": stat_of[name].column if name in stat_of else "votes",
                          "accept": acc, "threshold": t, "benign_accept": ba,
+                         ci_suffix("benign_accept"): binomial_ci(n_ok, b.size),
                          "uninformative": ba < det.min_benign_accept}
         if ba < det.min_benign_accept:
             res.uninformative.append(name)
         for s in attacks:
             c = roc_curve(b, a_by[s], acc)
             res.curves[(name, s)] = c
-            e = _entry(c, t, b, a_by[s])
+            e = _entry(c, t, b, a_by[s], alpha, stream(cfg.seed, "bootstrap", j, _ATTACK[s]))
             res.operating[(name, s)] = (t, e["benign_accept"], e["attack_reject"])
             res.metrics.setdefault("attacks", {}).setdefault(s, {})[name] = e
     # -- Neyman-Pearson fusion: fit, calibrate and evaluate on three parts of the blocks -------
@@ -158,15 +183,18 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
         fusion["np_calibration_false_alarm"] = float((s_cal > tau).mean())
         fusion["np_fit_false_alarm"] = float((model.score(b_fit.stats) > tau).mean())
         sb = model.score(b_te.stats)
+        n_ok = int((sb <= tau).sum())
         summary["NPFusion"] = {"statistic": "naive-Bayes log-likelihood ratio", "accept": "<=",
-                               "threshold": tau, "benign_accept": float((sb <= tau).mean()),
+                               "threshold": tau, "benign_accept": n_ok / sb.size,
+                               ci_suffix("benign_accept"): binomial_ci(n_ok, sb.size),
                                "uninformative": False, "evaluated_on": "test indices"}
         test: dict = {}
         for s in attacks:
             sa = model.score(a_te[s].stats)
             c = roc_curve(sb, sa, "<=")
             res.curves[("NPFusion", s)] = c
-            e = _entry(c, tau, sb, sa)
+            e = _entry(c, tau, sb, sa, alpha,
+                       stream(cfg.seed, "bootstrap", len(names), _ATTACK[s]))
             res.operating[("NPFusion", s)] = (tau, e["benign_accept"], e["attack_reject"])
             res.metrics["attacks"][s]["NPFusion"] = e
             test[s] = _test_comparison(b_te, a_te[s], sb, sa, tau, det.fusion.false_alarm, dets)
@@ -198,5 +226,9 @@ def _test_comparison(b_te: _Points, a_te: _Points, sb, sa, tau: float, alpha: fl
     out["NPFusion"] = {"auc": auc(roc_curve(sb, sa, "<=")), "threshold": tau,
                        "false_alarm": float((sb > tau).mean()),
                        "attack_reject": float((sa > tau).mean())}
+    nb, na = b_te.index.size, a_te.index.size
+    for e in out.values():   # Clopper-Pearson intervals of the shares on these points
+        e[ci_suffix("false_alarm")] = binomial_ci(round(e["false_alarm"] * nb), nb)
+        e[ci_suffix("attack_reject")] = binomial_ci(round(e["attack_reject"] * na), na)
     out["best_single"] = max(dets, key=lambda d: (out[d]["attack_reject"], out[d]["auc"]))
     return out

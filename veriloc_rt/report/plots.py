@@ -2,7 +2,8 @@
 
 Inputs are what the engine writes: ``<scenario>_results.csv`` (read with :func:`read_results_csv`)
 and the ``metrics.json`` dict ``{"scenarios": {scenario: {"outcomes": .., "outcomes_encrypted": ..,
-"correct_decision_rate": .., "position_error_m": ..}}}`` with values in percent. The figures follow
+"correct_decision_rate": .., "position_error_m": ..}}}`` with shares as fractions in [0, 1]
+(the figures draw them in percent). The figures follow
 the paper's Fig. "encrypted_PRS", Fig. "techniques" and Fig. "all_attacks".
 """
 
@@ -151,7 +152,7 @@ def _value(d: dict, key: str) -> float:
 #: the value metrics.json stores for a rate or share of 1 (all of the points): 100.0 while the
 #: scenario rates are percent, 1.0 once they are fractions. The one place the plots take the
 #: unit from (:func:`rate_percent`, :func:`rate_interval`)
-RATE_FULL_SCALE = 100.0
+RATE_FULL_SCALE = 1.0
 
 
 def rate_percent(v) -> float:

@@ -45,7 +45,7 @@ OUTCOMES = ("success", "large_error", "service_failure")
 def rate_percent(value) -> float | None:
     """A rate (a share of points or decisions) as ``metrics.json`` holds it, in percent
     (None: absent). The one place that knows the file's unit for rates."""
-    return None if value is None else float(value)
+    return None if value is None else 100.0 * float(value)   # metrics.json: fractions
 
 
 # -- diff -----------------------------------------------------------------------------------

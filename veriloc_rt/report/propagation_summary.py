@@ -23,7 +23,8 @@ def rms_delay_spread(cir: CIR) -> np.ndarray:
 
 
 def summarize(cir: CIR) -> dict:
-    """Coverage, LoS share, paths per link, delay spread and first-path excess delay.
+    """Coverage, LoS share, paths per link, delay spread and first-path excess delay (shares
+    as fractions in [0, 1]).
 
     Only links that exist (``tx_index`` set) count.
     """
@@ -31,7 +32,7 @@ def summarize(cir: CIR) -> dict:
     has = cir.has_path() & used
     n_used = int(used.sum())
     out = {"links": n_used,
-           "links_with_path_pct": 100.0 * float(has.sum()) / max(n_used, 1)}
+           "links_with_path_share": float(has.sum()) / max(n_used, 1)}
     if not has.any():
         return out
     paths = cir.valid.sum(-1)[has]
@@ -40,13 +41,13 @@ def summarize(cir: CIR) -> dict:
     only_diffracted = np.all((cir.interactions == INTERACTION_NONE)
                              | (cir.interactions == INTERACTION_DIFFRACTION), axis=-1)
     out.update({
-        "los_pct": 100.0 * float(cir.los[has].mean()),
+        "los_share": float(cir.los[has].mean()),
         "paths_per_link_mean": float(paths.mean()),
         "delay_spread_ns_p50": float(np.nanpercentile(ds, 50) * 1e9),
         "delay_spread_ns_p95": float(np.nanpercentile(ds, 95) * 1e9),
         "first_path_excess_m_p50": float(np.percentile(excess, 50) * SPEED_OF_LIGHT),
         "first_path_excess_m_p95": float(np.percentile(excess, 95) * SPEED_OF_LIGHT),
-        "diffraction_path_share_pct": 100.0 * float(
+        "diffraction_path_share": float(
             (cir.valid & np.any(cir.interactions == INTERACTION_DIFFRACTION, -1)
              & only_diffracted)[has].sum() / max(paths.sum(), 1)),
     })

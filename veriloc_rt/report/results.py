@@ -11,10 +11,14 @@ A row is flushed as soon as it exists: an interrupted run keeps every finished p
 
 Metrics (paper Sec. "Results and Discussion"):
 
-* ``outcomes`` [%]: success / large_error / service_failure over the *evaluated points*: every
-  point for ``none``, the attack window for an attack (the paper's FBS bar, 0.67 % success,
+Every share is a fraction in [0, 1] (percent only in printed tables and plot labels), followed
+by its 95 % interval ``<key>_ci95`` = ``[lo, hi]`` (Clopper-Pearson over the points it counts:
+:mod:`.intervals`; null without points).
+
+* ``outcomes``: success / large_error / service_failure over the *evaluated points*: every
+  point for ``none``, the attack window for an attack (the paper's FBS bar, 0.67 % success = 0.0067,
   counts the attack phase only);
-* ``correct_decision_rate`` [%] per detector: for ``none`` the share of points *with a fix*
+* ``correct_decision_rate`` per detector: for ``none`` the share of points *with a fix*
   that the detector accepts (false alarms exclude DoS points, as the paper defines them); for
   an attack the share of attack-window points that the detector rejects;
 * ``position_error_m``: p50 / p95 / p99.9 of the horizontal error over the evaluated points
@@ -34,6 +38,7 @@ from ..fileio import atomic_output, naming
 from ..detectors.outcomes import DETECTORS, OUTCOMES, TRP_DETECTORS, PointRow
 from ..detectors.statistics import STAT_COLUMNS, TRP_STAT_COLUMNS
 from ..errors import short_repr
+from .intervals import binomial_ci, ci_suffix
 
 __all__ = ["CSV_COLUMNS", "extra_columns", "TRP_COLUMNS", "TRP_DETECTOR_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
            "parse_rows", "detectors_of", "scenario_metrics", "results_path", "links_path"]
@@ -59,7 +64,7 @@ def extra_columns(extra: tuple[str, ...]) -> tuple[str, ...]:
 #: columns of ``<scenario>_links.csv``: one row per point and TRP
 LINK_COLUMNS = ("index", "trp", "bs_id", "distance_m", "rx_power_dbm", "snr_re_db", "heard",
                 "toa_error_m", "rstd_error_m", "aoa_error_deg", "tag_verified", "used",
-                "excluded", "peak_snr_db")
+                "excluded", "peak_snr_db", "hmac_margin_db", "ds_margin_db")
 
 
 def results_path(out_dir: str | Path, scenario: str) -> Path:
@@ -266,14 +271,22 @@ class ResultsWriter:
         self.close()
 
 
-def _pct(mask: np.ndarray, of: np.ndarray) -> float | None:
+def _shares(masks: dict, of: np.ndarray) -> dict:
+    """``{key: share}`` of each mask over the points ``of`` selects, each followed by its
+    Clopper-Pearson interval ``key_ci95`` (:func:`~.intervals.binomial_ci`; None without
+    points)."""
     n = int(of.sum())
-    return float(100.0 * (mask & of).sum() / n) if n else None
+    out: dict = {}
+    for k, mask in masks.items():
+        hits = int((mask & of).sum())
+        out[k] = float(hits / n) if n else None
+        out[ci_suffix(k)] = binomial_ci(hits, n)
+    return out
 
 
 def _outcomes(outcome: list[str], sel: np.ndarray) -> dict:
     o = np.asarray(outcome, dtype=object)
-    return {k: _pct(o == k, sel) for k in OUTCOMES}
+    return _shares({k: o == k for k in OUTCOMES}, sel)
 
 
 def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
@@ -287,20 +300,17 @@ def scenario_metrics(rows: list[PointRow], scenario: str) -> dict:
            "outcomes": _outcomes([r.outcome for r in rows], sel)}
     if all(r.outcome_enc is not None for r in rows):
         out["outcomes_encrypted"] = _outcomes([r.outcome_enc for r in rows], sel)
-    rates = {}
     names = detectors_of(rows)
-    for d in names:
-        valid = np.array([r.verdicts[d] for r in rows])
-        rates[d] = _pct(valid, sel & fix) if scenario == "none" else _pct(~valid, sel)
-    out["correct_decision_rate"] = rates
+    valid = {d: np.array([r.verdicts[d] for r in rows]) for d in names}
+    out["correct_decision_rate"] = (_shares(valid, sel & fix) if scenario == "none" else
+                                    _shares({d: ~v for d, v in valid.items()}, sel))
     err = np.array([r.error_m for r in rows])[sel & fix]
     out["position_error_m"] = ({k: float(np.percentile(err, q)) for k, q in
                                 (("p50", 50), ("p95", 95), ("p999", 99.9))} if err.size else
                                {"p50": None, "p95": None, "p999": None})
     if scenario != "none":  # the benign phases of an attack run (false alarms around the attack)
         ben = ~attack & fix
-        out["benign_phase_false_alarm_rate"] = {
-            d: _pct(~np.array([r.verdicts[d] for r in rows]), ben) for d in names}
+        out["benign_phase_false_alarm_rate"] = _shares({d: ~v for d, v in valid.items()}, ben)
     return out
 
 

@@ -8,13 +8,16 @@
 * ``links``: every ``<scenario>_links.csv`` row (per-TRP links) the same way, empty when the
   run wrote none;
 * ``metrics``: one row per leaf of ``metrics.json`` (``key`` its dotted path, ``value`` the
-  number or NaN, ``text`` the string or ``""``);
+  number or NaN, ``text`` the string or ``""``; a ``<key>_ci95`` interval is two leaves,
+  ``<key>_ci95.lo`` and ``<key>_ci95.hi``);
 * ``scenario_metrics``: the ``scenarios.<name>`` shares and error percentiles, tidy
-  (``scenario, metric, item, value, unit``: ``%`` for the shares, ``m`` for the errors);
+  (``scenario, metric, item, value, ci95_lo, ci95_hi, unit``: ``fraction`` for the shares, in
+  [0, 1], with their 95 % interval, ``m`` for the errors, interval NaN);
 * ``roc``: every ``roc.csv`` vertex (``detector, attack, threshold, benign_accept,
   attack_reject``; thresholds ``inf``/``-inf`` at the ends);
 * ``operating_points``: ``roc.attacks.<attack>.<decision>`` with the detector's
-  ``uninformative`` flag (``auc, threshold, benign_accept, attack_reject``, fractions).
+  ``uninformative`` flag (``auc, threshold, benign_accept, attack_reject,
+  pd_at_false_alarm``, fractions, then ``<key>_ci95_lo`` / ``_hi`` of each but the threshold).
 
 A Monte Carlo folder (``realisation_*/`` subfolders) gives every realisation's rows, numbered by
 ``realisation``; its top-level ``metrics.json`` (means and ``ci95``) is ``realisation`` -1 in
@@ -32,6 +35,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from ..errors import InputError
+from .intervals import CI_SUFFIX
 
 __all__ = ["RunTables", "TABLES", "load_run", "export_parquet", "export_mat", "EXPORT_FORMATS"]
 
@@ -43,9 +47,14 @@ EXPORT_FORMATS = ("parquet", "mat")
 _RESULTS = re.compile(r"^(?P<scenario>.+)_results\.csv$")
 _LINKS = re.compile(r"^(?P<scenario>.+)_links\.csv$")
 _REALISATION = re.compile(r"^realisation_(\d+)$")
-#: the unit of each ``scenarios.<name>`` group
-_UNITS = {"outcomes": "%", "outcomes_encrypted": "%", "correct_decision_rate": "%",
-          "benign_phase_false_alarm_rate": "%", "position_error_m": "m"}
+#: the unit of each ``scenarios.<name>`` group ("fraction": a share in [0, 1])
+#: the ``operating_points`` columns from each ``roc.attacks.<attack>.<decision>`` entry, and
+#: those whose 95 % interval follows (``<key>_ci95_lo``, ``<key>_ci95_hi``)
+_OPERATING = ("auc", "threshold", "benign_accept", "attack_reject", "pd_at_false_alarm")
+_OPERATING_CI = ("auc", "benign_accept", "attack_reject", "pd_at_false_alarm")
+_UNITS = {"outcomes": "fraction", "outcomes_encrypted": "fraction",
+          "correct_decision_rate": "fraction", "benign_phase_false_alarm_rate": "fraction",
+          "position_error_m": "m"}
 
 
 @dataclass
@@ -89,7 +98,10 @@ def _json(path: Path) -> dict:
 
 
 def _leaves(obj, prefix: str = ""):
-    if isinstance(obj, dict):
+    if prefix.endswith(CI_SUFFIX) and isinstance(obj, list) and len(obj) == 2:
+        yield f"{prefix}.lo", obj[0]   # a 95 % interval [lo, hi]: two numeric leaves
+        yield f"{prefix}.hi", obj[1]
+    elif isinstance(obj, dict):
         for k, v in obj.items():
             yield from _leaves(v, f"{prefix}.{k}" if prefix else str(k))
     elif isinstance(obj, list) and any(isinstance(v, (dict, list)) for v in obj):
@@ -158,13 +170,18 @@ def load_run(run_dir: str | Path) -> RunTables:
             continue
         for s, block in (m.get("scenarios") or {}).items():
             for group, unit in _UNITS.items():
-                for item, v in (block.get(group) or {}).items():
-                    scen.append((r, s, group, item, _number(v), unit))
+                g = block.get(group) or {}
+                for item, v in g.items():
+                    if item.endswith(CI_SUFFIX):
+                        continue
+                    lo, hi = g.get(item + CI_SUFFIX) or (None, None)
+                    scen.append((r, s, group, item, _number(v), _number(lo), _number(hi), unit))
         uninf = set((m.get("roc") or {}).get("uninformative") or ())
         for attack, per in ((m.get("roc") or {}).get("attacks") or {}).items():
             for name, e in per.items():
-                ops.append((r, attack, name, _number(e.get("auc")), _number(e.get("threshold")),
-                            _number(e.get("benign_accept")), _number(e.get("attack_reject")),
+                ops.append((r, attack, name, *(_number(e.get(k)) for k in _OPERATING),
+                            *(_number(x) for k in _OPERATING_CI
+                              for x in (e.get(k + CI_SUFFIX) or (None, None))),
                             name in uninf))
 
     def frame(parts, columns):
@@ -175,12 +192,13 @@ def load_run(run_dir: str | Path) -> RunTables:
         links=frame(links, ["realisation", "scenario"]),
         metrics=pd.DataFrame(rows, columns=["realisation", "key", "value", "text"]),
         scenario_metrics=pd.DataFrame(scen, columns=["realisation", "scenario", "metric", "item",
-                                                     "value", "unit"]),
+                                                     "value", "ci95_lo", "ci95_hi", "unit"]),
         roc=frame(roc, ["realisation", "detector", "attack", "threshold", "benign_accept",
                         "attack_reject"]),
-        operating_points=pd.DataFrame(ops, columns=["realisation", "attack", "detector", "auc",
-                                                    "threshold", "benign_accept",
-                                                    "attack_reject", "uninformative"]),
+        operating_points=pd.DataFrame(ops, columns=[
+            "realisation", "attack", "detector", *_OPERATING,
+            *(f"{k}{CI_SUFFIX}_{b}" for k in _OPERATING_CI for b in ("lo", "hi")),
+            "uninformative"]),
         run=info)
 
 

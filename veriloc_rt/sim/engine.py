@@ -40,7 +40,10 @@ from ..report.detection import analyse_detection
 from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
 from ..report.paper import PAPER_RATES
 from ..report.propagation_summary import summarize
-from ..report.results import ResultsWriter, parse_rows, results_path, scenario_metrics
+from ..report.link_budget import (link_arrays, link_budget_block, multipath_penalty_db,
+                                  read_link_arrays)
+from ..report.results import (ResultsWriter, links_path, parse_rows, results_path,
+                              scenario_metrics)
 from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
 from .checks import check_run_inputs, warn_silent_bs, warn_unreachable
@@ -249,6 +252,7 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     fields["resources"] = resources
     metrics["propagation_model"] = cfg.propagation.model
     metrics["doppler_hz"] = {"max_path": runner.max_doppler_hz, "scan": runner.doppler_scan_hz}
+    metrics["link_budget"] = _link_budget(cfg, rows, out)
     analysis = analyse_detection(rows, cfg)
     if analysis is not None:
         metrics["roc"] = analysis.metrics
@@ -264,6 +268,20 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
                      title=ROC_TITLE)
         write_run_json(out, cfg, "complete", timing, fields)
     return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
+
+
+def _link_budget(cfg: Config, rows: dict, out: Path | None) -> dict:
+    """The ``link_budget`` block (:func:`~veriloc_rt.report.link_budget.link_budget_block`) of
+    the ``none`` scenario (else the first one), from its links CSV when the run has a folder (a
+    resumed run's earlier points are only there), else from its rows."""
+    scenario = "none" if "none" in rows else next(iter(rows), None)
+    if scenario is None:
+        return {}
+    path = links_path(out, scenario) if out else None
+    links = read_link_arrays(path) if path is not None and path.exists() else \
+        link_arrays(rows[scenario])
+    return link_budget_block(links, cfg.propagation.ue_array.num_elements,
+                             multipath_penalty_db(cfg.propagation), scenario=scenario)
 
 
 def _saved_rows(out: Path, scenario: str, n: int) -> list:

@@ -3,9 +3,12 @@
 ``run.realisations = n`` runs the config ``n`` times; realisation ``r`` is a complete run
 (:func:`veriloc_rt.sim.engine.run`) of :func:`realisation_config`: BS layout
 ``topology.iteration + r`` and, for ``r >= 1``, its own seed derived from ``(seed,
-topology.iteration + r)``, so its trajectory (when generated), propagation, noise, adversary
-and key draws are new as well, and the realisations are independent samples. Realisation 0 is
-exactly the plain run of the config. Every draw still comes from the one config seed.
+topology.iteration + r)``, so its trajectory (a new drive, when generated), building heights
+(with ``scene.height_jitter_m`` > 0), propagation, noise, adversary and key draws are new as
+well, and the realisations are independent samples. Scene variants of the procedural canyon:
+``run.street_width_variants_m`` and ``run.height_jitter_variants_m`` give realisation ``r``
+entry ``r mod len`` of each list. Realisation 0 is exactly the plain run of the config (with
+the first scene variant, when listed). Every draw still comes from the one config seed.
 
 Each realisation is one task and writes a single run's files into ``out/realisation_NNN/``
 (its ``run.json`` holds the realisation's resolved config: it reproduces alone). The numbers
@@ -17,6 +20,11 @@ any input files under the same paths). At the end ``out/`` gets:
   is defined, plus per scenario ``ci95`` (Student-t 95 % half-width, None below two
   realisations) and ``realisations_defined`` with the same layout, and ``realisations``
   (``position_error_m``: the mean of the realisations' percentiles, not a pooled percentile);
+  every share's ``<key>_ci95`` is ``[mean - half, mean + half]`` clipped to [0, 1] (the spread
+  between the realisations; each realisation's own metrics.json holds its binomial interval
+  over its points); ``roc``: per attack and decision the mean AUC, detection rate at the
+  target false alarm and operating point, each with a bootstrap interval over the
+  realisations;
 * ``montecarlo.csv``: one row per realisation and scenario with the headline numbers;
 * ``montecarlo_detection_rates.png`` (mean correct-decision rates with CI bars),
   ``outcomes.png`` (mean outcomes) and ``run.json``.
@@ -40,6 +48,7 @@ from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import parse_json, read_text
 from ..report import plots
+from ..report.intervals import CI_SUFFIX, bootstrap_mean_ci, ci_suffix
 from ..rng import stream
 from .engine import Progress, run
 from .blas import one_blas_thread
@@ -81,11 +90,23 @@ class MonteCarloResults:
 
 
 def realisation_config(cfg: Config, r: int) -> Config:
-    """The single-run config of realisation ``r`` (``r = 0``: ``cfg`` itself, one realisation)."""
+    """The single-run config of realisation ``r`` (``r = 0``: ``cfg`` itself, one realisation,
+    with the first scene variant when ``run.street_width_variants_m`` or
+    ``run.height_jitter_variants_m`` lists any): its own seed (so its own drive, heights,
+    noise, adversary and keys), BS layout ``topology.iteration + r`` and scene variant
+    ``r mod`` the length of each variant list. The variant lists are cleared in the result (a
+    realisation is a single run)."""
     k = cfg.topology.iteration + r
     seed = cfg.seed if r == 0 else int(stream(cfg.seed, "realisation", k).integers(0, 2**63 - 1))
-    return replace(cfg, seed=seed, topology=replace(cfg.topology, iteration=k),
-                   run=replace(cfg.run, realisations=1))
+    scene = cfg.scene
+    widths, jitters = cfg.run.street_width_variants_m, cfg.run.height_jitter_variants_m
+    if widths:
+        scene = replace(scene, street_width_m=widths[r % len(widths)])
+    if jitters:
+        scene = replace(scene, height_jitter_m=jitters[r % len(jitters)])
+    return replace(cfg, seed=seed, scene=scene, topology=replace(cfg.topology, iteration=k),
+                   run=replace(cfg.run, realisations=1, street_width_variants_m=(),
+                               height_jitter_variants_m=()))
 
 
 def mean_ci(values, level: float = CI_LEVEL) -> tuple[float | None, float | None, int]:
@@ -107,8 +128,11 @@ def mean_ci(values, level: float = CI_LEVEL) -> tuple[float | None, float | None
     return mean, half, n
 
 
-def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
-    """Mean and CI over the ``metrics.json`` dicts of the realisations (same scenarios)."""
+def aggregate(per_realisation: list[dict], level: float = CI_LEVEL, seed: int = 0) -> dict:
+    """Mean and CI over the ``metrics.json`` dicts of the realisations (same scenarios); every
+    share's ``<key>_ci95`` is its Student-t interval over the realisations clipped to [0, 1]
+    (null below two realisations), the ``roc`` block's (:func:`_aggregate_roc`) a bootstrap
+    over the realisations seeded from ``seed``."""
     n = len(per_realisation)
     out: dict = {"scenarios": {}, "realisations": n, "confidence_level": level}
     for s in per_realisation[0]["scenarios"]:
@@ -121,11 +145,14 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
         for g in GROUPS:
             if not any(m.get(g) for m in ms):
                 continue
-            names = list(dict.fromkeys(k for m in ms for k in (m.get(g) or {})))
+            names = list(dict.fromkeys(k for m in ms for k in (m.get(g) or {})
+                                       if not k.endswith(CI_SUFFIX)))
             agg[g], ci[g], defined[g] = {}, {}, {}
             for k in names:
                 agg[g][k], ci[g][k], defined[g][k] = mean_ci([(m.get(g) or {}).get(k)
                                                               for m in ms], level)
+                if g != "position_error_m":   # a share: its interval over the realisations
+                    agg[g][ci_suffix(k)] = _clipped(agg[g][k], ci[g][k])
         flagged = [d for d in dict.fromkeys(d for m in ms
                                             for d in m.get("uninformative_detectors") or ())]
         if any("uninformative_detectors" in m for m in ms):
@@ -135,6 +162,79 @@ def aggregate(per_realisation: list[dict], level: float = CI_LEVEL) -> dict:
         agg["ci95"] = ci
         agg["realisations_defined"] = defined
         out["scenarios"][s] = agg
+    roc = _aggregate_roc(per_realisation, seed, level)
+    if roc:
+        out["roc"] = roc
+    budget = _aggregate_link_budget(per_realisation, level)
+    if budget:
+        out["link_budget"] = budget
+    return out
+
+
+def _aggregate_link_budget(per_realisation: list[dict], level: float) -> dict:
+    """The ``link_budget`` block of a Monte Carlo: the realisations' constants (thresholds,
+    penalty, antennas, scenario), ``links`` summed, each share the mean over the realisations
+    with its ``_ci95`` (Student-t, clipped to [0, 1], as the scenarios' shares) and each
+    percentile the mean of the realisations' (not a pooled percentile); empty when no
+    realisation has one."""
+    blocks = [m.get("link_budget") for m in per_realisation if m.get("link_budget")]
+    if not blocks:
+        return {}
+    first = blocks[0]
+    out: dict = {k: first[k] for k in ("scenario", "rx_antennas", "tag_threshold_db",
+                                       "multipath_penalty_db") if k in first}
+    out["links"] = int(sum(b.get("links", 0) for b in blocks))
+    out["realisations"] = len(blocks)
+    for k, v in first.items():
+        if k in out or k.endswith(CI_SUFFIX):
+            continue
+        if isinstance(v, dict) and all(q in v for q in ("p5", "p50", "p95")):
+            out[k] = {q: mean_ci([(b.get(k) or {}).get(q) for b in blocks], level)[0]
+                      for q in ("p5", "p50", "p95")}
+        elif k.endswith("_share"):
+            mean, half, _ = mean_ci([b.get(k) for b in blocks], level)
+            out[k], out[ci_suffix(k)] = mean, _clipped(mean, half)
+    return out
+
+
+def _clipped(mean: float | None, half: float | None) -> list[float] | None:
+    """``[mean - half, mean + half]`` clipped to [0, 1] (a share); None without a half-width."""
+    if mean is None or half is None:
+        return None
+    return [max(0.0, mean - half), min(1.0, mean + half)]
+
+
+def _aggregate_roc(per_realisation: list[dict], seed: int, level: float) -> dict:
+    """The ``roc`` block of a Monte Carlo: per attack and decision the mean over the
+    realisations of ``auc``, ``pd_at_false_alarm``, ``benign_accept`` and ``attack_reject``,
+    each with ``<key>_ci95``, a percentile bootstrap of the mean over the realisations
+    (:func:`~veriloc_rt.report.intervals.bootstrap_mean_ci`, stream
+    ``("bootstrap-realisations", attack, decision)`` of the seed); ``uninformative``: the
+    decisions flagged in any realisation; empty when no realisation has a ``roc`` block."""
+    rocs = [m.get("roc") for m in per_realisation if m.get("roc")]
+    if not rocs:
+        return {}
+    attacks = list(dict.fromkeys(a for r in rocs for a in r.get("attacks", {})))
+    out: dict = {"realisations": len(rocs),
+                 "false_alarm": rocs[0].get("fusion", {}).get("false_alarm"),
+                 "uninformative": list(dict.fromkeys(d for r in rocs
+                                                     for d in r.get("uninformative") or ())),
+                 "attacks": {}}
+    for ai, a in enumerate(attacks):
+        names = list(dict.fromkeys(d for r in rocs for d in r["attacks"].get(a, {})))
+        per: dict = {}
+        for di, d in enumerate(names):
+            entries = [r["attacks"].get(a, {}).get(d) or {} for r in rocs]
+            e: dict = {}
+            for key in ("auc", "pd_at_false_alarm", "benign_accept", "attack_reject"):
+                vals = [x.get(key) for x in entries]
+                mean, _, k = mean_ci(vals, level)
+                e[key] = mean
+                e[ci_suffix(key)] = (bootstrap_mean_ci(
+                    vals, stream(seed, "bootstrap-realisations", ai, di), level=level)
+                    if k >= 2 else None)
+            per[d] = e
+        out["attacks"][a] = per
     return out
 
 
@@ -235,7 +335,7 @@ def _montecarlo(cfg: Config, out: Path, progress: Progress | None, workers: int,
                   if progress else None)
             metrics.append(_realisation(real["config"], str(real["dir"]), resume, cb, force))
             log.info("realisation %d of %d done", real["index"] + 1, n)
-    agg = aggregate(metrics)
+    agg = aggregate(metrics, seed=cfg.seed)
     timing = _timing(metrics, time.perf_counter() - t0)
     resources = {"workers": (sum(client.nthreads().values()) if client is not None
                              else min(workers, n))}

@@ -58,6 +58,7 @@ from ..constants import SPEED_OF_LIGHT
 from ..rng import stream
 from ..attacks.adversary import AdversarySignal
 from ..attacks.threats import BENIGN, THREAT_REGISTRY
+from ..report.link_budget import multipath_penalty_db, tag_margin_db
 
 log = logging.getLogger(__name__)
 
@@ -337,7 +338,8 @@ class ScenarioRunner:
                        {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
                        stats={d: st for d, (_, st) in v.items()})
         row.trps, row.links = trp_links(res, self.roles["standard"].chain, self.prop.bs_ue, i,
-                                        self.geo.ue.pos[i])
+                                        self.geo.ue.pos[i],
+                                        multipath_penalty_db(self.cfg.propagation))
         row.fix_cov = cov
         if self.cfg.trp_outputs:
             row.auth = authenticated_fix(res, self.roles["standard"].chain, self.prop.bs_ue, i)
@@ -380,7 +382,7 @@ def authenticated_fix(res: ChainResult, chain: PositioningChain, bs_ue, i: int
 
 
 def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
-              ue_pos: np.ndarray) -> tuple[tuple, list]:
+              ue_pos: np.ndarray, penalty_db: float) -> tuple[tuple, list]:
     """What the row and the links CSV say about each TRP of point ``i``.
 
     Received PRS power: the TRP's transmit power (after power control) times the link's power
@@ -389,7 +391,10 @@ def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
     receiver's timing reference is the earliest true arrival less a guard, so its ToAs are
     absolute); RSTD error: ToA error minus the fix reference's (empty for the reference);
     AoA error: the resolved azimuth minus the true direction, wrapped to (-180, 180] deg;
-    peak SNR: the correlation peak's post-integration SNR the fix weights by (heard TRPs).
+    peak SNR: the correlation peak's post-integration SNR the fix weights by (heard TRPs);
+    HMAC and DS margins: the tags' margin against their decoding threshold measured on the
+    waveform bench, after combining the UE's antennas
+    (:func:`~veriloc_rt.report.link_budget.tag_margin_db`, less ``penalty_db``).
 
     :returns: ((bs_heard, bs_used, bs_excluded), [per TRP: LINK_COLUMNS after ``index``])
     """
@@ -410,9 +415,12 @@ def trp_links(res: ChainResult, chain: PositioningChain, bs_ue, i: int,
     fix = res.position
     used = set(fix.used) if fix.ok else set()
     excluded = tuple(int(j) for j in fix.excluded)
+    antennas = len(chain.element_pos)
+    margin = {s: tag_margin_db(snr_db, antennas, s, penalty_db) for s in ("hmac", "ds")}
     links = [(k, int(bs_ue.tx_index[i, k]), float(dist[k]), float(rx_dbm[k]), float(snr_db[k]),
               bool(res.detected[k]), float(toa_err[k]), float(rstd_err[k]), float(aoa_err[k]),
               bool(res.tags_valid[k]), k in used, k in excluded,
-              float(np.asarray(res.peak_snr_db, float)[k]) if res.detected[k] else float("nan"))
+              float(np.asarray(res.peak_snr_db, float)[k]) if res.detected[k] else float("nan"),
+              float(margin["hmac"][k]), float(margin["ds"][k]))
              for k in range(len(pos))]
     return (int(np.sum(res.detected)), len(used), ";".join(map(str, excluded))), links

@@ -122,7 +122,7 @@ def channel_statistics(cir, mask: np.ndarray | None = None) -> dict:
     """Per-link statistics of the serving links that have a path (within ``mask``).
 
     :param mask: optional [num_points, num_tx] bool, the links to describe (e.g. ``cir.los``)
-    :returns: {"links", "links_with_path_pct", "los_pct", "paths_per_link_mean",
+    :returns: {"links", "links_with_path_share", "los_share" (fractions), "paths_per_link_mean",
         "pathloss_db": {p10, p50, p90} (incoherent, -10 lg sum |a|^2 per element),
         "ds_ns": .., "asa_deg": .., "zsa_deg": .., "k_db": .. (LoS links)}
     """
@@ -131,7 +131,7 @@ def channel_statistics(cir, mask: np.ndarray | None = None) -> dict:
         used = used & mask
     has = cir.has_path() & used
     out = {"links": int(used.sum()),
-           "links_with_path_pct": 100.0 * float(has.sum()) / max(int(used.sum()), 1)}
+           "links_with_path_share": float(has.sum()) / max(int(used.sum()), 1)}
     if not has.any():
         return out
     pw = cir.path_power()[has]                                   # [L, paths]
@@ -154,7 +154,7 @@ def channel_statistics(cir, mask: np.ndarray | None = None) -> dict:
     def q(x):
         return finite_percentiles(x, (10, 50, 90))
 
-    out.update({"los_pct": 100.0 * float(los.mean()),
+    out.update({"los_share": float(los.mean()),
                 "paths_per_link_mean": float(cir.valid[has].sum(-1).mean()),
                 "pathloss_db": q(pl), "ds_ns": q(ds * 1e9), "asa_deg": q(asa),
                 "zsa_deg": q(zsa), "k_db": q(k_db)})
@@ -248,7 +248,7 @@ def error_statistics(b: BenignRun, los: np.ndarray | None = None) -> dict:
     out = {"toa_bias_m": _q(b.toa_bias_m), "rstd_error_m": _q(b.rstd_error_m),
            "rstd_abs_error_m": _q(np.abs(b.rstd_error_m)),
            "aoa_error_deg": _q(b.aoa_error_deg), "position_error_m": _q(b.position_error_m),
-           "fix_rate_pct": float(100 * np.mean(np.isfinite(b.pos[:, 0]))) if len(b.pos) else None}
+           "fix_rate": float(np.mean(np.isfinite(b.pos[:, 0]))) if len(b.pos) else None}
     if los is not None:
         bias = np.asarray(b.toa_bias_m, float)
         n = min(bias.shape[1], los.shape[1])
@@ -320,6 +320,11 @@ def _f(v, nd=1) -> str:
     return "n/a" if v is None else f"{v:.{nd}f}"
 
 
+def _pc(v) -> str:
+    """A share (a fraction in metrics.json) in percent."""
+    return "n/a" if v is None else f"{100 * v:.1f}"
+
+
 def _twin_label(res: ComparisonResult) -> str:
     return f"TR 38.901 {tr38901.SCENARIO_NAMES[res.models[1]]}"
 
@@ -335,10 +340,10 @@ def _channel_table(res: ComparisonResult, cond: str) -> list[str]:
     L = [head, "| --- | --- | --- |" + (" --- |" if ref_col else "")]
     tail = " |" if ref_col else ""
     L.append(f"| links | {rt.get('links')} | {tw.get('links')} |" + tail)
-    L.append(f"| links with a path, % | {_f(rt.get('links_with_path_pct'))} | "
-             f"{_f(tw.get('links_with_path_pct'))} |" + tail)
+    L.append(f"| links with a path, % | {_pc(rt.get('links_with_path_share'))} | "
+             f"{_pc(tw.get('links_with_path_share'))} |" + tail)
     if cond == "all":
-        L.append(f"| LoS links, % | {_f(rt.get('los_pct'))} | {_f(tw.get('los_pct'))} |")
+        L.append(f"| LoS links, % | {_pc(rt.get('los_share'))} | {_pc(tw.get('los_share'))} |")
     L.append(f"| paths per link (mean) | {_f(rt.get('paths_per_link_mean'))} | "
              f"{_f(tw.get('paths_per_link_mean'))} |" + tail)
     for key, name in (("pathloss_db", "path loss, dB"), ("ds_ns", "rms delay spread, ns"),
@@ -390,7 +395,7 @@ def markdown(res: ComparisonResult) -> str:
             continue
         L.append(f"| {name} | {_f(a['p50'], 2)} / {_f(a['p95'], 2)} | "
                  f"{_f(b['p50'], 2)} / {_f(b['p95'], 2)} |")
-    L.append(f"| DL fix rate, % | {_f(er[rt_m]['fix_rate_pct'])} | {_f(er[tw_m]['fix_rate_pct'])} |")
+    L.append(f"| DL fix rate, % | {_pc(er[rt_m]['fix_rate'])} | {_pc(er[tw_m]['fix_rate'])} |")
     L += ["", "## Detectors (correct-decision rate, %) and outcomes (standard PRS, %)", "",
           "| scenario | model | " + " | ".join(DETECTORS) + " | " + " | ".join(OUTCOMES) + " |",
           "| --- | --- | " + " | ".join("---" for _ in DETECTORS + OUTCOMES) + " |"]
@@ -400,9 +405,9 @@ def markdown(res: ComparisonResult) -> str:
             if not m.get("num_points"):
                 continue
             uninf = set(m.get("uninformative_detectors") or ())   # no detection to show
-            rates = " | ".join("uninf." if d in uninf else _f(m["correct_decision_rate"].get(d))
+            rates = " | ".join("uninf." if d in uninf else _pc(m["correct_decision_rate"].get(d))
                                for d in DETECTORS)
-            outs = " | ".join(_f(m["outcomes"].get(o)) for o in OUTCOMES)
+            outs = " | ".join(_pc(m["outcomes"].get(o)) for o in OUTCOMES)
             L.append(f"| {scen} | {model} | {rates} | {outs} |")
     L += ["", "`uninf.`: a detector that accepts under `detectors.min_benign_accept` of the "
           "benign fixes; its rejections under attack are no detections."]
@@ -447,7 +452,7 @@ def _write(res: ComparisonResult, cfg: Config) -> None:
                     ref = tab[cond][key] if cond != "all" and qn == "p50" else ""
                     w.writerow([cond, key, qn, (a.get(key) or {}).get(qn),
                                 (b.get(key) or {}).get(qn), tw_m, "" if ref is None else ref])
-            for key in ("links", "links_with_path_pct", "los_pct", "paths_per_link_mean"):
+            for key in ("links", "links_with_path_share", "los_share", "paths_per_link_mean"):
                 w.writerow([cond, key, "", a.get(key), b.get(key), tw_m, ""])
     label = tr38901.SCENARIO_NAMES[tw_m]
     plot_comparison_cdfs({m: res.benign[m] for m in res.models}, out / "comparison_cdf.png",

@@ -23,10 +23,17 @@ def assert_png(path):
 
 
 def outcomes(s, le, sf):
-    return {"success": s, "large_error": le, "service_failure": sf}
+    """Outcome shares given in percent, as metrics.json holds them: fractions."""
+    return {"success": s / 100, "large_error": le / 100, "service_failure": sf / 100}
 
 
 def rates(*v):
+    """Correct-decision rates given in percent, as metrics.json holds them: fractions."""
+    return dict(zip(DETECTORS, (None if x is None else x / 100 for x in v)))
+
+
+def pct_rates(*v):
+    """A reference in percent (the paper's figures)."""
     return dict(zip(DETECTORS, v))
 
 
@@ -82,7 +89,8 @@ def test_outcomes_without_encrypted_and_with_missing_scenarios(metrics, tmp_path
 
 
 def test_detection_rates_png_with_reference(metrics, tmp_path):
-    ref = {"none": rates(99.16, 98.75, 96.77, 99.39, 95.72), "fbs": rates(99.5, 100, 99.37, 99, 98.33)}
+    ref = {"none": pct_rates(99.16, 98.75, 96.77, 99.39, 95.72),
+           "fbs": pct_rates(99.5, 100, 99.37, 99, 98.33)}
     assert_png(plot_detection_rates(metrics, tmp_path / "rates.png", title="Rates", reference=ref))
 
 

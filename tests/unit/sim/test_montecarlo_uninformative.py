@@ -4,6 +4,8 @@ its attack bars out."""
 
 from __future__ import annotations
 
+import pytest
+
 from veriloc_rt.cli import format_montecarlo
 from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.report import plots
@@ -11,11 +13,11 @@ from veriloc_rt.sim.montecarlo import aggregate
 
 
 def _metrics(flagged: list[str]) -> dict:
-    rates = {d: 100.0 for d in DETECTORS}
-    outcomes = {"success": 50.0, "large_error": 50.0, "service_failure": 0.0}
+    rates = {d: 1.0 for d in DETECTORS}   # fractions, as metrics.json holds them
+    outcomes = {"success": 0.5, "large_error": 0.5, "service_failure": 0.0}
     return {"scenarios": {
         "none": {"num_points": 8, "num_evaluated": 8, "outcomes": outcomes,
-                 "correct_decision_rate": {d: 90.0 for d in DETECTORS}},
+                 "correct_decision_rate": {d: 0.9 for d in DETECTORS}},
         "fbs": {"num_points": 8, "num_evaluated": 4, "outcomes": outcomes,
                 "correct_decision_rate": rates, "uninformative_detectors": flagged}}}
 
@@ -25,10 +27,11 @@ def test_flag_of_any_realisation_hides_the_mean_attack_rate(tmp_path):
     assert agg["scenarios"]["fbs"]["uninformative_detectors"] == ["DigSig"]
     assert "uninformative_detectors" not in agg["scenarios"]["none"]
     line = next(ln for ln in format_montecarlo(agg).splitlines() if ln.startswith("fbs"))
-    cells = line.split("|")[0].split()[1:]
+    # the scenario name in 11 characters and a space, then a 15-character cell per detector
+    cells = [line[12 + 16 * k: 27 + 16 * k].strip() for k in range(len(DETECTORS))]
     assert cells[DETECTORS.index("DigSig")] == "uninf."
-    assert cells[DETECTORS.index("HMAC")] == "100.0±0.0"
-    # the bar chart: heights as drawn on the caller's axes
+    assert cells[DETECTORS.index("HMAC")] == "100.0 [100-100]"   # no spread between the two
+    # the bar chart: heights as drawn on the caller's axes, in percent (100 x the fractions)
     from matplotlib.figure import Figure
 
     ax = Figure().subplots()
@@ -36,6 +39,6 @@ def test_flag_of_any_realisation_hides_the_mean_attack_rate(tmp_path):
     seen = {"bars": {c.get_label(): [p.get_height() for p in c.patches]
                      for c in ax.containers if hasattr(c, "patches")},
             "texts": [t.get_text() for t in ax.texts]}
-    assert seen["bars"]["DigSig"] == [90.0, 0.0]   # none, fbs: no attack bar
-    assert seen["bars"]["HMAC"] == [90.0, 100.0]
+    assert seen["bars"]["DigSig"] == pytest.approx([90.0, 0.0], abs=1e-12)   # fbs: no bar
+    assert seen["bars"]["HMAC"] == pytest.approx([90.0, 100.0], abs=1e-12)
     assert seen["texts"].count("uninf.") == 1

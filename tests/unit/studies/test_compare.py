@@ -35,7 +35,7 @@ def test_two_equal_paths_delay_and_angle_spread():
     assert s["zsa_deg"]["p50"] == pytest.approx(0.0, abs=1e-5)
     # the path at the straight-line delay against the other: K = 0 dB
     assert s["k_db"]["p50"] == pytest.approx(0.0, abs=1e-9)
-    assert s["los_pct"] == 100.0 and s["paths_per_link_mean"] == 2.0
+    assert s["los_share"] == 1.0 and s["paths_per_link_mean"] == 2.0
 
 
 def test_k_factor_ten_to_one():
@@ -48,7 +48,7 @@ def test_nlos_link_has_no_k_factor():
     d0 = 100.0 / SPEED_OF_LIGHT
     c = _cir([d0 + 10e-9, d0 + 50e-9], [1.0, 1.0], [0.0, 1.0], [np.pi / 2] * 2, los=False)
     s = channel_statistics(c)
-    assert s["los_pct"] == 0.0 and s["k_db"]["p50"] is None
+    assert s["los_share"] == 0.0 and s["k_db"]["p50"] is None
 
 
 def test_uma_reference_medians_from_table_7_5_6():

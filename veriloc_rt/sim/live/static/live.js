@@ -97,13 +97,18 @@ function renderProgress(st) {
   }));
 }
 
+// a share's 95 % interval ([lo, hi] fractions in metrics.json) as a tooltip, in percent
+function ci(iv) {
+  return Array.isArray(iv) ? "95 % interval " + (100 * iv[0]).toFixed(1) + "–" + (100 * iv[1]).toFixed(1) + " %" : "";
+}
+
 function renderShares(st) {
   const box = document.getElementById("shares");
   box.replaceChildren(...st.scenarios.map(sc => {
     const o = (sc.metrics && sc.metrics.outcomes) || {};
     const stack = el("div", {class: "stack", title: sc.name});
     for (const k of st.outcomes) {
-      const v = o[k] || 0;
+      const v = 100 * (o[k] || 0);   // metrics hold fractions in [0, 1]
       if (v > 0) stack.append(el("div", {class: "s-" + k, style: "width:" + v + "%",
                                          title: k + " " + v.toFixed(1) + " %", text: v >= 12 ? v.toFixed(0) + "%" : ""}));
     }
@@ -117,7 +122,8 @@ function renderShares(st) {
     return el("tr", {}, el("td", {text: sc.name}),
               ...st.detectors.map(d => el("td", uninf.includes(d)
                 ? {text: "uninf.", title: d + " accepts too few benign fixes: its rejections here are no detections"}
-                : {text: r[d] === undefined || r[d] === null ? "–" : r[d].toFixed(1)})));
+                : {text: r[d] === undefined || r[d] === null ? "–" : (100 * r[d]).toFixed(1),
+                   title: ci(r[d + "_ci95"])})));
   });
   t.replaceChildren(head, ...rows);
 }
