@@ -567,7 +567,7 @@ def outputs_md() -> str:
            "`los_share`, `fix_rate`), in `montecarlo.csv` "
            "and in `roc.csv`; percent appears only in printed tables and plot labels (and "
            "in the paper's own figures, `veriloc_rt/report/paper.py`, which "
-           "`scripts/paper_table.py` compares in percent). `timing_s` holds seconds only; counts and memory are in "
+           "`veriloc-rt paper-table` compares in percent). `timing_s` holds seconds only; counts and memory are in "
            "`resources`. `run.json` records paths inside the run folder relative to it "
            "(`scene_xml`: `scene/scene.xml`), the package versions (`versions`) and "
            "`git_revision` (the commit of the package's git checkout, `-dirty` appended "

@@ -12,7 +12,7 @@ Tag margin of a link, dB::
   up to ``10 log10(A)`` dB more;
 * ``threshold_db``: :data:`TAG_THRESHOLD_DB`, the per-RE SNR (after combining) from which a
   tag fails in at most 1 % of the checks, measured on the waveform bench
-  ``scripts/bench_prs.py --rates 15.36e6 --repeats 1 --slots 60 --snr -6 -0.5 0.5``: three
+  ``benchmarks/bench_prs.py --rates 15.36e6 --repeats 1 --slots 60 --snr -6 -0.5 0.5``: three
   BSs' tagged grids of the default ``NRConfig`` (52 PRB, 30 kHz, comb 6, 12 PRS symbols) through
   flat channels with random phase and delay, one antenna, AWGN per RE, the channel estimated
   from the PRS; 180 checks per 0.5 dB step (docs/link-budget.md, "Thresholds");
@@ -40,7 +40,7 @@ __all__ = ["TAG_THRESHOLD_DB", "MULTIPATH_PENALTY_DB", "multipath_penalty_db", "
            "read_link_arrays", "link_budget_block", "format_link_budget"]
 
 #: per-RE SNR after combining, dB, from which the tag check fails in <= 1 % of the bench's 180
-#: checks (scripts/bench_prs.py, module docstring): HMAC fails 75 / 30 / 2.8 / 0.6 / 0 % at
+#: checks (benchmarks/bench_prs.py, module docstring): HMAC fails 75 / 30 / 2.8 / 0.6 / 0 % at
 #: -4.0 / -3.5 / -3.0 / -2.5 / -2.0 dB; DS 96 / 57 / 11 / 0.6 % at -2.0 / -1.5 / -1.0 / -0.5 dB
 TAG_THRESHOLD_DB = {"hmac": -2.5, "ds": -0.5}
 #: dB a multipath channel costs the tags over the bench's flat one, by channel kind: the SNR
