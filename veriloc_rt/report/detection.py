@@ -35,6 +35,8 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 
+import zlib
+
 import numpy as np
 
 from ..config import Config
@@ -53,6 +55,12 @@ __all__ = ["FUSED", "ROC_COLUMNS", "DetectionAnalysis", "analyse_detection"]
 FUSED = ("KofN", "NPFusion")
 #: the attacks' numbers in the named bootstrap streams
 _ATTACK = {"fbs": 1, "meaconing": 2, "jamming": 3}
+
+
+def _attack_index(name: str) -> int:
+    """The bootstrap stream's index of an attack scenario: the built-ins' fixed ones, a
+    registered threat's from its name (CRC-32, above the built-ins'), so any name has one."""
+    return _ATTACK.get(name, 4 + zlib.crc32(name.encode()))
 #: roc.csv columns
 ROC_COLUMNS = ("detector", "attack", "threshold", "benign_accept", "attack_reject")
 
@@ -159,7 +167,7 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
         for s in attacks:
             c = roc_curve(b, a_by[s], acc)
             res.curves[(name, s)] = c
-            e = _entry(c, t, b, a_by[s], alpha, stream(cfg.seed, "bootstrap", j, _ATTACK[s]))
+            e = _entry(c, t, b, a_by[s], alpha, stream(cfg.seed, "bootstrap", j, _attack_index(s)))
             res.operating[(name, s)] = (t, e["benign_accept"], e["attack_reject"])
             res.metrics.setdefault("attacks", {}).setdefault(s, {})[name] = e
     # -- Neyman-Pearson fusion: fit, calibrate and evaluate on three parts of the blocks -------
@@ -194,7 +202,7 @@ def analyse_detection(rows: dict, cfg: Config) -> DetectionAnalysis | None:
             c = roc_curve(sb, sa, "<=")
             res.curves[("NPFusion", s)] = c
             e = _entry(c, tau, sb, sa, alpha,
-                       stream(cfg.seed, "bootstrap", len(names), _ATTACK[s]))
+                       stream(cfg.seed, "bootstrap", len(names), _attack_index(s)))
             res.operating[("NPFusion", s)] = (tau, e["benign_accept"], e["attack_reject"])
             res.metrics["attacks"][s]["NPFusion"] = e
             test[s] = _test_comparison(b_te, a_te[s], sb, sa, tau, det.fusion.false_alarm, dets)
