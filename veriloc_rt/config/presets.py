@@ -34,7 +34,7 @@ PRESETS = {
 }
 
 #: what ``veriloc-rt run`` runs without CONFIG
-DEFAULT_PRESET = "3gpp-umi-street"
+DEFAULT_PRESET = "3gpp-uma"
 
 
 def preset_names() -> tuple[str, ...]:
