@@ -139,7 +139,8 @@ def configuration_md() -> str:
     n_fields = sum(len(f) for _, _, f in sections)
     out = [HEADER.format(script=SCRIPT), "# Configuration reference", "",
            "A config is one JSON file; every field is optional, so `{}` is the built-in default "
-           "scenario (`veriloc-rt run` without a config). Unknown keys are rejected. A bad value "
+           "scenario (the preset `harsh-alley`; `veriloc-rt run` without a config runs the preset "
+           "`3gpp-uma`, [scenarios](scenarios.md)). Unknown keys are rejected. A bad value "
            "stops the command before any work with one line, `error: <field>: <problem>`, and "
            "exit code 2. `veriloc-rt config show [CONFIG]` prints a config with every default "
            "filled in; `veriloc-rt config schema` prints the JSON schema this page is generated "

@@ -14,6 +14,9 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "Config": "veriloc_rt.config",
     "load_config": "veriloc_rt.config",
+    "load_preset": "veriloc_rt.config.presets",
+    "preset_names": "veriloc_rt.config.presets",
+    "DEFAULT_PRESET": "veriloc_rt.config.presets",
     "InputError": "veriloc_rt.errors",
     "CIR": "veriloc_rt.propagation.cir",
     "urban_canyon": "veriloc_rt.world.scene.canyon",

@@ -34,10 +34,14 @@ def _bar(args):
     return NoProgress() if getattr(args, "no_progress", False) else ProgressBar()
 
 
-def _load(config_path: str | None, points: int | None = None, seed: int | None = None):
-    from .config import load_config, with_overrides
+def _load(config_path: str | None, points: int | None = None, seed: int | None = None,
+          default: str | None = None):
+    """CONFIG: a JSON file or a preset's name; None: preset ``default`` (``run``: the default
+    preset), or the built-in ``Config()``."""
+    from .config import with_overrides
+    from .config.presets import load_config_or_preset
 
-    cfg = load_config(config_path)
+    cfg = load_config_or_preset(config_path, default)
     if points is not None or seed is not None:
         cfg = with_overrides(cfg, points=points, seed=seed)
     return cfg
@@ -68,7 +72,9 @@ def _open_browser(url: str, args) -> None:
 
 
 def cmd_run(args) -> int:
-    cfg = _load(args.config, args.points, args.seed)
+    from .config.presets import DEFAULT_PRESET
+
+    cfg = _load(args.config, args.points, args.seed, default=DEFAULT_PRESET)
     out = _out(args.out)
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers", f"got {args.workers}, expected an integer >= 1")
@@ -511,6 +517,12 @@ def cmd_config(args) -> int:
 
     if args.action == "schema":
         print(json_text(config_schema()))
+    elif args.action == "presets":
+        from .config.presets import DEFAULT_PRESET, PRESETS, preset_names
+
+        for name in preset_names():
+            mark = " (default of run)" if name == DEFAULT_PRESET else ""
+            print(f"{name}{mark}: {PRESETS[name]}")
     elif args.action == "check":
         import tempfile
 
@@ -633,8 +645,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     _quiet_flag(p, False)
     sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("run", help="run a scenario (no CONFIG: the built-in default)")
-    r.add_argument("config", nargs="?", help="JSON config file")
+    r = sub.add_parser("run", help="run a scenario (no CONFIG: the default preset)")
+    r.add_argument("config", nargs="?", help="JSON config file or a preset's name "
+                   "(`veriloc-rt config presets`); none: the default preset")
     r.add_argument("--out", default="results", help="output folder (default: results)")
     r.add_argument("--points", type=int, help="number of trajectory points")
     r.add_argument("--seed", type=int, help="override the config's seed")
@@ -746,10 +759,12 @@ def build_parser() -> argparse.ArgumentParser:
     _quiet_flag(v)
     v.set_defaults(func=cmd_validate)
     c = sub.add_parser("config", help="print the config schema or a resolved config")
-    c.add_argument("action", choices=("schema", "show", "check"),
+    c.add_argument("action", choices=("schema", "show", "check", "presets"),
                    help="schema: the JSON schema; show: the resolved config; check: every check "
-                   "of a run's inputs (config, scene, trajectory, key files), nothing computed")
-    c.add_argument("config", nargs="?", help="JSON config file (for show and check)")
+                   "of a run's inputs (config, scene, trajectory, key files), nothing computed; "
+                   "presets: the named presets")
+    c.add_argument("config", nargs="?", help="JSON config file or a preset's name (for show "
+                   "and check)")
     c.add_argument("--points", type=int, help="check: number of trajectory points")
     c.add_argument("--seed", type=int, help="check: override the config's seed")
     c.set_defaults(func=cmd_config)

@@ -80,8 +80,8 @@ def test_noiseless_chain_recovers_toa_and_position(domain, rate):
 def test_esprit_through_the_chain_within_one_degree_at_20_db(axis_deg):
     ue = np.array([-60.0, 45.0, 1.5])
     chain = make_chain(tags="none", axis_deg=axis_deg, uplink=False)
-    # |g|^2 such that the per-RE, per-antenna SNR is 20 dB at 24 dBm (power control keeps all
-    # BSs at 24 dBm because the three links are equally strong)
+    # |g|^2 such that the per-RE, per-antenna SNR is 20 dB at 24 dBm (every BS broadcasts at
+    # 24 dBm; with power control the three equally strong links would keep it too)
     nv = thermal_noise_variance(chain.ofdm.sample_rate_hz, chain.channel.ue_noise_figure_db)
     g2 = 100.0 * nv * chain.ofdm.num_subcarriers / (float(dbm_to_watt(24.0)) * chain.ofdm.fft_size)
     cir = exact_cir(ue, amp=np.sqrt(g2), axis_deg=axis_deg)

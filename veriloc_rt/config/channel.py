@@ -47,9 +47,11 @@ class ChannelConfig:
                                  "band still fits; 1: no decimation", lo=1, hi=64)
     bs_max_power_dbm: float = param(24.0, "largest serving-BS transmit power (paper: 24 dBm)",
                                     lo=-50.0, hi=80.0)
-    power_control: bool = param(True, "idealised power control: each serving BS's power is set "
-                                "so all arrive equally strong, the weakest link at the maximum "
-                                "power; false: every BS at the maximum")
+    power_control: bool = param(False, "false: every TRP broadcasts its PRS at the maximum "
+                                "power (a broadcast signal is not power-controlled per UE); "
+                                "true: the paper's idealised UE-specific power control, each "
+                                "serving BS's power set so all arrive equally strong, the "
+                                "weakest link at the maximum power")
     prs_power: str = param("carrier", "how a transmitter's power maps onto its REs: 'carrier': "
                            "P over the fully loaded carrier (energy per RE P / N_sc, as for "
                            "data); 'occupied': P over the REs it transmits in a PRS symbol (PRS, "

@@ -91,10 +91,12 @@ class NRConfig:
         :meth:`trps_per_slot`; group g transmits in slots g T_rep .. (g + 1) T_rep - 1 of the
         frame's PRS slots. This is a PRS resource set whose resources carry
         dl-PRS-ResourceSlotOffset g T_rep, dl-PRS-ResourceRepetitionFactor T_rep and timeGap 1
-        (TS 38.214 5.1.6.1; TS 38.211 7.4.1.7.4 places a resource's repetitions
-        T_offset,res + i T_gap, i < T_rep, slots after the set's offset: the formula as
-        recalled, the 38.211 text was not reachable here); T_rep is the largest of 38.214's
-        repetition factors for which every group fits in nr.slots_per_frame. One group (the
+        (TS 38.214 5.1.6.1). TS 38.211 7.4.1.7.4 puts a resource in slot n_s of frame n_f when
+        (n_f N_slot + n_s - T_offset - T_offset,res) mod T_per = i T_gap for some i < T_rep (the
+        38.211 text itself was not reachable here; the condition is OpenAirInterface's UE PRS
+        slot check, docs/trps.md): with the frame as T_per, T_offset 0, T_offset,res g T_rep and
+        T_gap 1 these are the slots above. T_rep is the largest of 38.214's repetition factors
+        for which every group fits in nr.slots_per_frame. One group (the
         paper's three TRPs) transmits in every PRS slot, as before.
 
         :returns: (group of each TRP, T_rep: slots per group; nr.slots_per_frame for one group)

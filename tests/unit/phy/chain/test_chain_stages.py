@@ -85,7 +85,7 @@ def test_downlink_power_control_and_timing_reference_in_closed_form():
     maximum power; t0 is the earliest first-path delay less the guard."""
     nr = NRConfig(slots_per_frame=1)
     ofdm = OFDM(nr)
-    ch = ChannelConfig()
+    ch = ChannelConfig(power_control=True)
     dl = DownlinkChannel(ch, ofdm, range(1), 1.0, ofdm.num_samples(range(1)), 1, WhiteNoise(), 0.0)
     amp = np.array([1e-6, 2e-6, 0.5e-6])
     links = dl.links(one_path_cir(UE, amp), 0)

@@ -28,12 +28,16 @@ def expected_prs(n_id, k_offset, comb, slot, l, k_count) -> dict[int, complex]:
 
 
 def slots_of(i: int, n: int, per_slot: int, t_rep: int, num_slots: int = 10) -> list[int]:
-    """Slots of TRP i of n: group i // per_slot transmits in slots g T_rep .. (g + 1) T_rep - 1;
-    with one group (n <= per_slot) every slot."""
+    """Slots of TRP i of n by TS 38.211 7.4.1.7.4's condition, a DL PRS resource occupies slot
+    n_s of frame n_f when (n_f N_slot + n_s - T_offset - T_offset,res) mod T_per = i' T_gap for
+    some i' < T_rep (the condition as OpenAirInterface's UE evaluates it). Here T_per is the
+    frame (N_slot = num_slots, n_f = 0), T_offset = 0, T_gap = 1 and TRP i's resource has
+    T_offset,res = (i // per_slot) T_rep; with one group (n <= per_slot) every slot."""
     if n <= per_slot:
         return list(range(num_slots))
-    g = i // per_slot
-    return list(range(g * t_rep, (g + 1) * t_rep))
+    t_per, t_offset, t_gap, t_offset_res = num_slots, 0, 1, (i // per_slot) * t_rep
+    return [s for s in range(num_slots)
+            if (s - t_offset - t_offset_res) % t_per in {r * t_gap for r in range(t_rep)}]
 
 
 @pytest.mark.parametrize("case", [
