@@ -28,7 +28,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .channel import add_noise, draw_noise
+from .channel import add_noise, draw_grid_noise_on, draw_noise
 from .nr.ofdm import OFDM
 from .nr.prs import SYMBOLS_PER_SLOT
 from ..rng import KeptDraw
@@ -43,23 +43,36 @@ class NoiseSource(ABC):
     follows_call_rng: bool = True
 
     @abstractmethod
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                 read: np.ndarray | None = None) -> np.ndarray:
         """``x`` plus noise of ``variance`` per sample (a new complex128 array).
 
         :param x: [A, S, 14, K] complex grid or [A, N] complex IQ
         :param variance: float, W per sample and RE (0: no noise, ``x`` copied)
         :param rng: the call's generator
+        :param read: grids only: [S', 14, K] bool (S' >= S), the REs the receiver reads; a
+            source may leave the others without noise (None: every RE is read)
         """
 
 
 class WhiteNoise(NoiseSource):
     """i.i.d. CN(0, variance) per sample from the call's generator; a grid's draws run along the
-    slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1)."""
+    slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1). Given the
+    REs the receiver reads, a grid gets noise on those alone
+    (:func:`~veriloc_rt.phy.channel.draw_grid_noise_on`, the same order of draws): what the
+    receiver sees has the same distribution, for fewer draws."""
 
     follows_call_rng = True
 
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
-        return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                 read: np.ndarray | None = None) -> np.ndarray:
+        if read is None or x.ndim != 4 or variance <= 0:
+            return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
+        n = draw_grid_noise_on(x.shape, read, variance, rng)
+        n += x
+        return n
 
 
 class KeptWhiteNoise(WhiteNoise):
@@ -77,16 +90,22 @@ class KeptWhiteNoise(WhiteNoise):
     def __init__(self, size: int = 4):
         self._kept = KeptDraw(size)
 
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                 read: np.ndarray | None = None) -> np.ndarray:
         if variance <= 0 or not isinstance(rng, np.random.Generator):
-            return super().__call__(x, variance, rng)
+            return super().__call__(x, variance, rng, read)
+        if x.ndim != 4:
+            read = None
 
         def draw():
-            n = draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+            n = (draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+                 if read is None else draw_grid_noise_on(x.shape, read, variance, rng))
             n.flags.writeable = False
             return n
 
-        return self._kept((x.shape, variance), rng, draw) + x
+        # the REs drawn are part of the key (their bytes: a mask compares by value)
+        mask = None if read is None else np.asarray(read, dtype=bool)[:x.shape[1]].tobytes()
+        return self._kept((x.shape, variance, mask), rng, draw) + x
 
 
 class GridNoise(NoiseSource):
@@ -112,7 +131,10 @@ class GridNoise(NoiseSource):
             raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
         self.rng = rng
 
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                 read: np.ndarray | None = None) -> np.ndarray:
+        """(``read`` is ignored: every RE gets its noise, so that chains of different layouts
+        see the same noise on the same REs.)"""
         if variance <= 0:
             return add_noise(x, variance, rng)
         src = self.rng if self.rng is not None else rng
