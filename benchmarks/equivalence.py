@@ -389,6 +389,7 @@ def power_lines(a: Sample, b: Sample, m: int, alpha: float) -> list[str]:
         f"p0 + {SHIFT:g}; sigma0 = sqrt(pbar (1 - pbar) (1/nA + 1/nB)) under H0, "
         "sigma1 = sqrt(p0 (1 - p0)/nA + p1 (1 - p1)/nB) under the shift; "
         "power = Phi((d - z sigma0)/sigma1) + Phi((-d - z sigma0)/sigma1), z = z(1 - level/2). "
+        "p0 is clamped to [0.0001, 0.9999] (a share of 0 or 100 % is tested as 0.01 %). "
         f"Levels: {alpha:g} (one test alone) and {alpha:g}/{m} (the family's strictest Holm level). "
         "n80: points per version for 80 % power at the single-test level.",
         "",
