@@ -43,31 +43,47 @@ class NoiseSource(ABC):
     follows_call_rng: bool = True
 
     @abstractmethod
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                 read: np.ndarray | None = None) -> np.ndarray:
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
         """``x`` plus noise of ``variance`` per sample (a new complex128 array).
 
         :param x: [A, S, 14, K] complex grid or [A, N] complex IQ
         :param variance: float, W per sample and RE (0: no noise, ``x`` copied)
         :param rng: the call's generator
-        :param read: grids only: [S', 14, K] bool (S' >= S), the REs the receiver reads; a
-            source may leave the others without noise (None: every RE is read)
         """
+
+    def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                    read: np.ndarray | None) -> np.ndarray:
+        """As the call, told which REs of a grid the receiver reads: a source may leave the
+        others without noise (this one gives every RE its noise).
+
+        :param read: grids only: [S', 14, K] bool (S' >= S), the REs read (None: every RE)
+        """
+        return self(x, variance, rng)
+
+
+def _overrides_call(source: NoiseSource, cls: type) -> bool:
+    """``source``'s class overrides ``cls``'s call (to record or change the noise): it then gets
+    every call, with every RE's noise."""
+    return type(source).__call__ is not cls.__call__
 
 
 class WhiteNoise(NoiseSource):
     """i.i.d. CN(0, variance) per sample from the call's generator; a grid's draws run along the
     slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1). Given the
-    REs the receiver reads, a grid gets noise on those alone
+    REs the receiver reads (:meth:`add_on_read`), a grid gets noise on those alone
     (:func:`~veriloc_rt.phy.channel.draw_grid_noise_on`, the same order of draws): what the
-    receiver sees has the same distribution, for fewer draws."""
+    receiver sees has the same distribution, for fewer draws. A subclass that overrides the call
+    (to record or change the noise) gets every call instead, with every RE's noise."""
 
     follows_call_rng = True
 
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                 read: np.ndarray | None = None) -> np.ndarray:
-        if read is None or x.ndim != 4 or variance <= 0:
-            return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+
+    def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                    read: np.ndarray | None) -> np.ndarray:
+        if read is None or x.ndim != 4 or variance <= 0 or _overrides_call(self, WhiteNoise):
+            return self(x, variance, rng)
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
         n = draw_grid_noise_on(x.shape, read, variance, rng)
@@ -90,10 +106,15 @@ class KeptWhiteNoise(WhiteNoise):
     def __init__(self, size: int = 4):
         self._kept = KeptDraw(size)
 
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                 read: np.ndarray | None = None) -> np.ndarray:
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        return self.add_on_read(x, variance, rng, None)
+
+    def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                    read: np.ndarray | None) -> np.ndarray:
         if variance <= 0 or not isinstance(rng, np.random.Generator):
-            return super().__call__(x, variance, rng, read)
+            return WhiteNoise.__call__(self, x, variance, rng)   # a copy, or the type error
+        if _overrides_call(self, KeptWhiteNoise):
+            return self(x, variance, rng)
         if x.ndim != 4:
             read = None
 
@@ -131,10 +152,9 @@ class GridNoise(NoiseSource):
             raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
         self.rng = rng
 
-    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                 read: np.ndarray | None = None) -> np.ndarray:
-        """(``read`` is ignored: every RE gets its noise, so that chains of different layouts
-        see the same noise on the same REs.)"""
+    def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        # (add_on_read gives every RE its noise too: chains of different layouts then see the
+        # same noise on the same REs)
         if variance <= 0:
             return add_noise(x, variance, rng)
         src = self.rng if self.rng is not None else rng

@@ -194,7 +194,7 @@ class DownlinkChannel:
             else:
                 x = apply_time(dl.links, frame.waveform, dl.amplitudes, self.ofdm.sample_rate_hz, t0,
                                self.buffer_samples, self.decimation)
-            x = self.noise(x, self.noise_var, rng, self.read_mask(frame))
+            x = self.noise.add_on_read(x, self.noise_var, rng, self.read_mask(frame))
             x.flags.writeable = False
             return x
 
