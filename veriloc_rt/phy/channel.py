@@ -39,7 +39,7 @@ from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to
 from .nr.ofdm import OFDM
 from ..propagation.cir import CIR, array_response
 
-__all__ = ["Links", "dbm_to_watt", "draw_noise", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
+__all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupancy_groups",
            "group_index", "apply_frequency", "apply_time",
            "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
@@ -476,3 +476,26 @@ def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_ax
     n = np.moveaxis(n, 0, major_axis)
     n *= np.sqrt(variance / 2.0)
     return n
+
+
+def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
+                       rng: np.random.Generator) -> np.ndarray:
+    """Circular complex Gaussian noise CN(0, variance) on the REs ``read`` of a grid, 0 elsewhere.
+
+    The draws run as :func:`draw_noise`'s with ``major_axis`` 1 (slot, then antenna, symbol,
+    subcarrier) over the REs of ``read`` alone: with every RE read, the values are
+    :func:`draw_noise`'s; the first slots' noise does not depend on the number of slots. Each
+    read RE's noise has the distribution :func:`draw_noise` gives it (i.i.d. CN(0, variance)),
+    so a receiver that reads no other RE sees the same statistics.
+
+    :param shape: (A, S, 14, K), the grid's
+    :param read: [S', 14, K] bool with S' >= S (its first S slots count)
+    :returns: [A, S, 14, K] complex128
+    """
+    a, s = shape[0], shape[1]
+    mask = np.broadcast_to(np.asarray(read, dtype=bool)[:s, None], (s, a) + tuple(shape[2:]))
+    out = np.zeros((s, a) + tuple(shape[2:]), dtype=np.complex128)
+    n = rng.standard_normal((int(np.count_nonzero(mask)), 2)).view(np.complex128)[:, 0]
+    n *= np.sqrt(variance / 2.0)
+    out[mask] = n
+    return np.moveaxis(out, 0, 1)

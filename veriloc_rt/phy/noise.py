@@ -28,7 +28,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .channel import add_noise, draw_noise
+from .channel import add_noise, draw_grid_noise_on, draw_noise
 from .nr.ofdm import OFDM
 from .nr.prs import SYMBOLS_PER_SLOT
 from ..rng import KeptDraw
@@ -51,15 +51,44 @@ class NoiseSource(ABC):
         :param rng: the call's generator
         """
 
+    def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                    read: np.ndarray | None) -> np.ndarray:
+        """As the call, told which REs of a grid the receiver reads: a source may leave the
+        others without noise (this one gives every RE its noise).
+
+        :param read: grids only: [S', 14, K] bool (S' >= S), the REs read (None: every RE)
+        """
+        return self(x, variance, rng)
+
+
+def _overrides_call(source: NoiseSource, cls: type) -> bool:
+    """``source``'s class overrides ``cls``'s call (to record or change the noise): it then gets
+    every call, with every RE's noise."""
+    return type(source).__call__ is not cls.__call__
+
 
 class WhiteNoise(NoiseSource):
     """i.i.d. CN(0, variance) per sample from the call's generator; a grid's draws run along the
-    slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1)."""
+    slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1). Given the
+    REs the receiver reads (:meth:`add_on_read`), a grid gets noise on those alone
+    (:func:`~veriloc_rt.phy.channel.draw_grid_noise_on`, the same order of draws): what the
+    receiver sees has the same distribution, for fewer draws. A subclass that overrides the call
+    (to record or change the noise) gets every call instead, with every RE's noise."""
 
     follows_call_rng = True
 
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
         return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+
+    def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                    read: np.ndarray | None) -> np.ndarray:
+        if read is None or x.ndim != 4 or variance <= 0 or _overrides_call(self, WhiteNoise):
+            return self(x, variance, rng)
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
+        n = draw_grid_noise_on(x.shape, read, variance, rng)
+        n += x
+        return n
 
 
 class KeptWhiteNoise(WhiteNoise):
@@ -78,15 +107,26 @@ class KeptWhiteNoise(WhiteNoise):
         self._kept = KeptDraw(size)
 
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        return self.add_on_read(x, variance, rng, None)
+
+    def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
+                    read: np.ndarray | None) -> np.ndarray:
         if variance <= 0 or not isinstance(rng, np.random.Generator):
-            return super().__call__(x, variance, rng)
+            return WhiteNoise.__call__(self, x, variance, rng)   # a copy, or the type error
+        if _overrides_call(self, KeptWhiteNoise):
+            return self(x, variance, rng)
+        if x.ndim != 4:
+            read = None
 
         def draw():
-            n = draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+            n = (draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
+                 if read is None else draw_grid_noise_on(x.shape, read, variance, rng))
             n.flags.writeable = False
             return n
 
-        return self._kept((x.shape, variance), rng, draw) + x
+        # the REs drawn are part of the key (their bytes: a mask compares by value)
+        mask = None if read is None else np.asarray(read, dtype=bool)[:x.shape[1]].tobytes()
+        return self._kept((x.shape, variance, mask), rng, draw) + x
 
 
 class GridNoise(NoiseSource):
@@ -113,6 +153,8 @@ class GridNoise(NoiseSource):
         self.rng = rng
 
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
+        # (add_on_read gives every RE its noise too: chains of different layouts then see the
+        # same noise on the same REs)
         if variance <= 0:
             return add_noise(x, variance, rng)
         src = self.rng if self.rng is not None else rng

@@ -25,6 +25,7 @@ from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, equal_ar
                        re_amplitude, timing_reference)
 from ..nr.ofdm import OFDM
 from ..noise import NoiseSource
+from ..shortcuts import reference
 from ...rng import KeptDraw
 from .frames import FrameSignals
 
@@ -125,11 +126,24 @@ class DownlinkChannel:
     :param buffer_samples: length of the received IQ (time domain)
     :param decimation: time-domain path application decimation
     :param noise: the UE's noise source; noise_var: its variance per sample, W
+    :param read_symbols: symbols (0..13) whose every RE the receiver reads (its noise estimate's
+        free symbols); read_slots: indices of the frame's slots whose every RE it reads (the tag
+        checks'); with both given, frequency domain, the noise is drawn only on these and on
+        the PRS replicas' REs (the shortcut ``noise`` of :mod:`veriloc_rt.phy.shortcuts`)
     """
 
     def __init__(self, channel: ChannelConfig, ofdm: OFDM, slots, bs_power_factor: float,
-                 buffer_samples: int, decimation: int, noise: NoiseSource, noise_var: float):
+                 buffer_samples: int, decimation: int, noise: NoiseSource, noise_var: float,
+                 read_symbols=None, read_slots=None):
         self.channel, self.ofdm, self.slots = channel, ofdm, slots
+        #: [14, 1] bool and slot indices the receiver reads whole (None: noise on every RE)
+        self._read_whole = None
+        if (read_symbols is not None and read_slots is not None and channel.domain == "frequency"
+                and not reference("noise")):
+            sym = np.zeros((14, 1), dtype=bool)
+            sym[list(read_symbols)] = True
+            self._read_whole = (sym, tuple(int(s) for s in read_slots))
+        self._read_kept: tuple = (None, None)   # (replica_occupied, its read mask)
         self.bs_power_factor = float(bs_power_factor)
         self.buffer_samples, self.decimation = int(buffer_samples), int(decimation)
         self.noise, self.noise_var = noise, float(noise_var)
@@ -149,6 +163,20 @@ class DownlinkChannel:
         return DownlinkLinks(links, powers, amps, t0, Links.from_cir(adversary.cir, point),
                              adversary.signal)
 
+    def read_mask(self, frame: FrameSignals) -> np.ndarray | None:
+        """[S, 14, K] bool, the REs the receiver reads in ``frame`` (None: every RE, or not
+        known): every replica's REs, the whole symbols and slots given at construction."""
+        if self._read_whole is None or frame.replica_occupied is None:
+            return None
+        if self._read_kept[0] is frame.replica_occupied:
+            return self._read_kept[1]
+        sym, slots = self._read_whole
+        read = np.logical_or.reduce(frame.replica_occupied) | sym
+        read[list(slots)] = True
+        read.flags.writeable = False
+        self._read_kept = (frame.replica_occupied, read)
+        return read
+
     def benign(self, dl: DownlinkLinks, frame: FrameSignals, rng: np.random.Generator,
                num_slots: int, key: SignalKey | None = None) -> np.ndarray:
         """The serving BSs' signal plus noise (read-only): grid [A, num_slots, 14, K] or IQ [A, N].
@@ -166,7 +194,7 @@ class DownlinkChannel:
             else:
                 x = apply_time(dl.links, frame.waveform, dl.amplitudes, self.ofdm.sample_rate_hz, t0,
                                self.buffer_samples, self.decimation)
-            x = self.noise(x, self.noise_var, rng)
+            x = self.noise.add_on_read(x, self.noise_var, rng, self.read_mask(frame))
             x.flags.writeable = False
             return x
 

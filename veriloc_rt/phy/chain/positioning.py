@@ -127,7 +127,9 @@ class PositioningChain:
         decimation = max(1, min(channel.time_decimation, self.ofdm.fft_size // nr.min_fft_size))
         self.downlink = DownlinkChannel(channel, self.ofdm, self.slots, self.bs_power_factor,
                                         buffer_samples, decimation,
-                                        noise if noise is not None else WhiteNoise(), self.noise_var)
+                                        noise if noise is not None else WhiteNoise(), self.noise_var,
+                                        read_symbols=[s for s in range(14) if s not in nr.prs_symbols],
+                                        read_slots=self.checked_slots)
         self.timing = TimingStage(ToAEstimator(receiver, channel.timing_guard_s), self.ofdm, self.slots,
                                   channel, receiver.search_window_s, nr.prs_symbols, self.noise_var)
         weighted = (receiver.fix_weighting == "snr"
