@@ -79,7 +79,7 @@ def cmd_run(args) -> int:
                          "only with --live")
     if not args.live:
         return _run(cfg, out, args)
-    from .sim.live.server import start_view_process
+    from .live.server import start_view_process
 
     port = _port(args.port)
     view = start_view_process(out, port)
@@ -426,7 +426,7 @@ def _serve(server, args, page: str = "") -> int:
 
 def cmd_view(args) -> int:
     from .inputs import check_path
-    from .sim.live.server import LiveServer
+    from .live.server import LiveServer
 
     try:
         folder = check_path(args.dir, args.dir)
@@ -446,8 +446,8 @@ def cmd_view(args) -> int:
 
 
 def cmd_edit(args) -> int:
-    from .sim.live.editor import editor_config
-    from .sim.live.server import LiveServer
+    from .live.editor import editor_config
+    from .live.server import LiveServer
 
     if args.config is not None and Path(args.config).exists():
         editor_config(args.config)    # a bad file: the one-line error now, not in the page

@@ -19,10 +19,10 @@ import stat
 import tempfile
 from pathlib import Path
 
-from ...config import config_from_dict, config_schema, config_to_dict, load_config, patch_data
-from ...errors import InputError
-from ...fileio import atomic_output
-from ..checks import check_inputs
+from ..config import config_from_dict, config_schema, config_to_dict, load_config, patch_data
+from ..errors import InputError
+from ..fileio import atomic_output
+from ..sim.checks import check_inputs
 
 __all__ = ["form_fields", "range_text", "check_config", "editor_config", "save_config",
            "set_field", "named_files", "file_error", "FILE_FIELDS"]

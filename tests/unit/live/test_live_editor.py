@@ -12,7 +12,7 @@ import pytest
 from veriloc_rt.cli import main
 from veriloc_rt.config import Config, TrajectoryConfig, config_from_dict
 from veriloc_rt.config.fields import json_schema, param, section
-from veriloc_rt.sim.live.editor import (check_config, editor_config, form_fields, range_text,
+from veriloc_rt.live.editor import (check_config, editor_config, form_fields, range_text,
                                         save_config, set_field)
 
 
