@@ -4,7 +4,7 @@ its attack bars out."""
 
 from __future__ import annotations
 
-from veriloc_rt.cli import format_montecarlo
+from veriloc_rt.report.summary import format_montecarlo
 from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.report import plots
 from veriloc_rt.sim.montecarlo import aggregate
