@@ -3,7 +3,7 @@ source").
 
 The ground is a square of side ``2 * GROUND_HALF_M`` at z = 0 centred on the origin; the building
 a box of footprint ``SIDE_M`` x ``SIDE_M`` centred at ``CENTRE_XY`` with the height the config
-gives after the name (``scene.source = "one_building:<height in m>"``; ``"one_building"``: 
+gives after the name (``scene.source = "one_building:<height in m>"``; ``"one_building"``:
 ``DEFAULT_HEIGHT_M``). Its materials are the config's ``scene.building_material`` and
 ``scene.ground_material`` (the base class checks those against the carrier before a ray-traced
 run). Register it by importing this module.

@@ -1,6 +1,7 @@
 """The recipes of docs/extending.md: each example plug-in of examples/plugins/ (a threat, a
-detector, a propagation model, each one file that registers itself) runs end to end through
-``veriloc_rt.run`` on a tiny config, and its numbers match an independent derivation."""
+detector, a propagation model, a scene source, each one file that registers itself) runs end to
+end through ``veriloc_rt.run`` on a tiny config, and its numbers match an independent
+derivation."""
 
 from __future__ import annotations
 

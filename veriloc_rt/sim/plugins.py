@@ -1,11 +1,11 @@
 """The names a config gives the plug-in families, checked against their registries.
 
-The config sits below the packages that register threats, detectors, propagation models and scene sources
-(docs/design.md, "Plug-in registries"), so it checks only a name's type; this module, above
-them all, looks every name up before a run computes anything (:func:`check_plugin_names`,
-called by :func:`~veriloc_rt.sim.engine.run`, the Monte Carlo driver and ``veriloc-rt config
-check``) and lists the registered choices of each such field (:func:`registered_choices`, for
-the generated configuration reference).
+The config sits below the packages that register threats, detectors, propagation models and
+scene sources (docs/design.md, "Plug-in registries"), so it checks only a name's type (or form);
+this module, above them all, looks every name up before a run computes anything
+(:func:`check_plugin_names`, called by :func:`~veriloc_rt.sim.engine.run`, the Monte Carlo
+driver and ``veriloc-rt config check``) and lists the registered choices of each such field
+(:func:`registered_choices`, for the generated configuration reference and the live editor).
 """
 
 from __future__ import annotations

@@ -2,9 +2,10 @@
 
 A scene source builds the run's scene from the config: a procedural
 :class:`~veriloc_rt.world.scene.canyon.UrbanCanyon` or a checked
-:class:`~veriloc_rt.world.scene.external.MeshScene`; :func:`~veriloc_rt.world.geometry.build_geometry`
-then crops it to the BSs and the trajectory and writes the XML + PLY files the tracer reads. The
-built-ins register here the way a plug-in does (docs/extending.md, "A new scene source"):
+:class:`~veriloc_rt.world.scene.external.MeshScene`;
+:func:`~veriloc_rt.world.geometry.build_geometry` then crops it to the BSs and the trajectory
+and writes the XML + PLY files the tracer reads. The built-ins register here the way a plug-in
+does (docs/extending.md, "A new scene source"):
 
 * ``canyon``: the procedural Manhattan grid (``scene.source = "canyon"``);
 * ``xml``: a Mitsuba XML scene file (``scene.source`` a path ending in ``.xml``);
@@ -13,7 +14,8 @@ built-ins register here the way a plug-in does (docs/extending.md, "A new scene 
   (``scene.osm`` set; ``scene.source`` stays ``"canyon"``).
 
 A plug-in is named as ``scene.source = "<name>"`` or ``"<name>:<argument>"``
-(:attr:`~veriloc_rt.config.SceneConfig.source_name`, :attr:`~veriloc_rt.config.SceneConfig.source_arg`).
+(:attr:`~veriloc_rt.config.SceneConfig.source_name`,
+:attr:`~veriloc_rt.config.SceneConfig.source_arg`).
 The config sits below this package, so it checks only the form of a name;
 :func:`veriloc_rt.sim.plugins.check_plugin_names` looks it up before anything is computed.
 """
@@ -77,7 +79,8 @@ class SceneSource:
     def materials(self, cfg: Config) -> list[tuple[str, str, str]]:
         """``(config field, ITU material, message)`` of each material the scene uses; the
         message holds ``{problem}``, where the check puts what is wrong."""
-        return [(f"scene.{n}", getattr(cfg.scene, n), "{problem} (propagation.carrier_frequency_hz)")
+        msg = "{problem} (propagation.carrier_frequency_hz)"
+        return [(f"scene.{n}", getattr(cfg.scene, n), msg)
                 for n in ("building_material", "ground_material")]
 
 
