@@ -320,7 +320,7 @@ METRICS_TOP_DOC = {
            "scenario and an attack scenario)",
 }
 
-#: the keys of metrics.json's `roc` block (veriloc_rt/report/detection.py)
+#: the keys of metrics.json's `roc` block (veriloc_rt/analysis/detection.py)
 ROC_DOC = {
     "benign_points": "the `none` scenario's points with a fix: the benign points of every ROC",
     "min_benign_accept": "`detectors.min_benign_accept`",

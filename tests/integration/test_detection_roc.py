@@ -18,7 +18,7 @@ from veriloc_rt.cli import main
 from veriloc_rt.config import config_from_dict
 from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.detectors.statistics import STATISTICS, accepts, configured_thresholds
-from veriloc_rt.report.detection import FUSED
+from veriloc_rt.analysis.detection import FUSED
 
 from .strict_json import assert_folder_strict
 

@@ -1,6 +1,7 @@
 """The recipes of docs/extending.md: each example plug-in of examples/plugins/ (a threat, a
-detector, a propagation model, each one file that registers itself) runs end to end through
-``veriloc_rt.run`` on a tiny config, and its numbers match an independent derivation."""
+detector, a propagation model, a scene source, each one file that registers itself) runs end to
+end through ``veriloc_rt.run`` on a tiny config, and its numbers match an independent
+derivation."""
 
 from __future__ import annotations
 
@@ -20,6 +21,9 @@ from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.detectors.registry import DETECTOR_REGISTRY
 from veriloc_rt.errors import InputError
 from veriloc_rt.propagation.models import PROPAGATION_REGISTRY
+from veriloc_rt.world.scene.external import MeshScene
+from veriloc_rt.world.sources import SCENE_SOURCE_REGISTRY
+from veriloc_rt.world.streets import CLEARANCE_M
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "plugins"
 NUM_POINTS = 8
@@ -154,3 +158,60 @@ def test_registered_names_and_unknown_ones(plugins, tmp_path):
     # the built-in detectors always run: naming one in detectors.extra is refused
     with pytest.raises(InputError, match="detectors.extra"):
         veriloc_rt.run(config_from_dict({"detectors": {"extra": ["ABSA"]}}), tmp_path / "never")
+
+
+#: the scene-source recipe's run: one 35 m building (examples/plugins/one_building.py), BSs at
+#: their fixed height (rooftop placement would put every BS on the one roof), UMa links
+SCENE_HEIGHT_M = 35.0
+SCENE_CONFIG = {"seed": 3, "scene": {"source": f"one_building:{SCENE_HEIGHT_M:g}"},
+                "topology": {"placement": "fixed"}, "propagation": {"model": "uma"},
+                "trajectory": {"num_points": 6},
+                "run": {"scenarios": ["none"], "evaluate_encrypted": False}}
+
+
+@pytest.fixture(scope="module")
+def scene_run(tmp_path_factory):
+    mod = _load("one_building")
+    out = tmp_path_factory.mktemp("one-building")
+    res = veriloc_rt.run(config_from_dict(SCENE_CONFIG), out)
+    yield mod, out, res
+    SCENE_SOURCE_REGISTRY.unregister("one_building")
+
+
+def test_scene_source_plugin_builds_the_run_scene(scene_run):
+    """The run's written scene (read back from scene/scene.xml) holds the plug-in's one building
+    with the footprint the module sets and the height the config gives, exactly (integers in
+    metres survive the PLY's float32); the generated drive keeps at least the street
+    clearance from its walls (the distance to the rectangle computed here)."""
+    mod, out, res = scene_run
+    scene = MeshScene.from_xml(out / "scene" / "scene.xml")
+    assert len(scene.buildings) == 1
+    lo, hi = scene.buildings[0].bounds
+    (cx, cy), s = mod.CENTRE_XY, mod.SIDE_M / 2.0
+    assert lo.tolist() == [cx - s, cy - s, 0.0]
+    assert hi.tolist() == [cx + s, cy + s, SCENE_HEIGHT_M]
+    rows = _csv(out / "none_results.csv")
+    assert len(rows) == SCENE_CONFIG["trajectory"]["num_points"]
+    for r in rows:
+        dx = max(abs(float(r["x_true"]) - cx) - s, 0.0)
+        dy = max(abs(float(r["y_true"]) - cy) - s, 0.0)
+        # tolerance 1e-9 m: the CSV's repr-exact floats, subtraction rounding only
+        assert math.hypot(dx, dy) >= CLEARANCE_M - 1e-9
+    assert res.config.scene.source_name == "one_building"
+
+
+def test_scene_source_names_checked(scene_run, tmp_path):
+    """The plug-in is a registered choice of scene.source; an unknown source (before the output
+    folder exists) or a bad argument (when the plug-in builds the scene) is one InputError
+    naming scene.source."""
+    from veriloc_rt.sim.plugins import registered_choices
+
+    assert registered_choices()["scene.source"] == ("canyon", "xml", "sionna", "osm",
+                                                    "one_building")
+    for source, words, made in (("no_such_scene", "unknown scene source", False),
+                                ("one_building:tall", "height of 2 to 500 m", True)):
+        cfg = config_from_dict({**SCENE_CONFIG, "scene": {"source": source}})
+        with pytest.raises(InputError) as e:
+            veriloc_rt.run(cfg, tmp_path / source)
+        assert e.value.field == "scene.source" and words in str(e.value)
+        assert (tmp_path / source).exists() == made

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from veriloc_rt.detectors.outcomes import DETECTORS
-from veriloc_rt.sim.live.editor import check_config, editor_config, set_field
+from veriloc_rt.live.editor import check_config, editor_config, set_field
 
 CHROMIUM = Path("/usr/bin/chromium")
 pytestmark = pytest.mark.skipif(not CHROMIUM.exists(), reason="needs Debian's chromium at "

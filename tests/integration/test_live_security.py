@@ -30,7 +30,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from veriloc_rt.sim.live.server import MAX_HANDLERS, REQUEST_DEADLINE_S, TIMEOUT_S, TOKEN_HEADER
+from veriloc_rt.live.server import MAX_HANDLERS, REQUEST_DEADLINE_S, TIMEOUT_S, TOKEN_HEADER
 
 #: the installed console script (what a user runs)
 ENTRY = Path(sys.executable).with_name("veriloc-rt")
@@ -564,7 +564,7 @@ def test_random_gets_always_get_an_answer(fuzz_server, route, query):
 
 
 def test_edit_without_config_writes_only_its_new_default_file(tmp_path):
-    from veriloc_rt.sim.live.server import LiveServer, Refused
+    from veriloc_rt.live.server import LiveServer, Refused
 
     server = LiveServer(tmp_path / "r", port=0, edit=True)
     try:

@@ -15,8 +15,8 @@ import pytest
 from veriloc_rt.cli import main
 from veriloc_rt.config import Config, config_to_dict
 from veriloc_rt.detectors.outcomes import OUTCOMES
-from veriloc_rt.sim.live.server import TOKEN_HEADER, LiveServer
-from veriloc_rt.sim.live.state import RunFolderState
+from veriloc_rt.live.server import TOKEN_HEADER, LiveServer
+from veriloc_rt.live.state import RunFolderState
 
 #: a tiny UMa run: two scenarios, no encrypted-PRS pass, DigSig from the HMAC chain's checks
 TINY = {"propagation": {"model": "uma"}, "trajectory": {"num_points": 8, "adversary_lag_points": 2},
@@ -188,7 +188,7 @@ def test_a_taken_default_port_falls_back_but_a_given_one_is_an_error(tmp_path, m
     import socket
 
     from veriloc_rt.errors import InputError
-    from veriloc_rt.sim.live import server as live_server
+    from veriloc_rt.live import server as live_server
 
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))

@@ -33,7 +33,7 @@ from veriloc_rt import cli as cli_module
 from veriloc_rt.config import config_from_dict
 from veriloc_rt.errors import InputError
 from veriloc_rt.report import results as results_module
-from veriloc_rt.sim.live.state import RunFolderState
+from veriloc_rt.live.state import RunFolderState
 from veriloc_rt.sim.run_folder import (LOCK_FILE, OWNER_FILE, RUN_FILES, check_fresh,
                                        check_resume, locked)
 

@@ -211,8 +211,7 @@ def with_overrides(cfg: Config, *, points: int | None = None, seed: int | None =
 
 def _resolve_paths(cfg: Config, base: Path) -> Config:
     scene, traj, sec, topo = cfg.scene, cfg.trajectory, cfg.security, cfg.topology
-    if not scene.is_canyon and not scene.is_bundled and not scene.osm \
-            and not Path(scene.source).is_absolute():
+    if scene.is_path and not scene.osm and not Path(scene.source).is_absolute():
         scene = dataclasses.replace(scene, source=str((base / scene.source).resolve()))
     if scene.osm and not Path(scene.osm).is_absolute():
         scene = dataclasses.replace(scene, osm=str((base / scene.osm).resolve()))

@@ -88,7 +88,7 @@ class TrackingConfig:
 
 @dataclass(frozen=True)
 class FusionConfig:
-    """Fused decisions over the five detectors (report.fusion): k-of-n voting and a
+    """Fused decisions over the five detectors (analysis.fusion): k-of-n voting and a
     Neyman-Pearson likelihood-ratio test on their statistics."""
 
     k: int = param(3, "k-of-n voting: a point is rejected when at least k of the 5 detectors "

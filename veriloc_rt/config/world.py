@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib.util
+import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -71,6 +73,8 @@ def itu_material_problem(name: str, frequency_hz: float) -> str | None:
 
 #: prefix of ``scene.source`` naming a scene bundled with Sionna RT (``"sionna:munich"``)
 BUNDLED_PREFIX = "sionna:"
+#: the form of a registered scene source's ``scene.source``: ``<name>`` or ``<name>:<argument>``
+_SOURCE_NAME = re.compile(r"[A-Za-z0-9_-]+(:.*)?")
 
 
 def _bundled_scenes_dir() -> Path | None:
@@ -110,7 +114,9 @@ class SceneConfig:
                         "Sionna-compatible Mitsuba XML scene (metres, z up, flat ground at the "
                         "bottom, centred near the origin; a streets.json beside it gives the "
                         "street graph), or 'sionna:<name>' for a scene bundled with Sionna RT "
-                        "(sionna:munich, sionna:etoile, sionna:florence, ...)")
+                        "(sionna:munich, sionna:etoile, sionna:florence, ...), or the name of a "
+                        "registered scene-source plug-in, '<name>' or '<name>:<argument>' "
+                        "(docs/extending.md)")
     building_height_m: float = param(15.0, "mean building height", lo=1.0, hi=200.0)
     height_jitter_m: float = param(0.0, "building heights uniform in mean +- jitter (seeded)",
                                    lo=0.0, hi=100.0)
@@ -155,6 +161,30 @@ class SceneConfig:
         return self.source.startswith(BUNDLED_PREFIX)
 
     @property
+    def is_path(self) -> bool:
+        """The source is a scene file's path (it ends in ``.xml`` or holds a folder separator)."""
+        return not self.is_bundled and (self.source.endswith(".xml") or "/" in self.source
+                                        or os.sep in self.source)
+
+    @property
+    def source_name(self) -> str:
+        """The scene-source registry's name of this scene (``veriloc_rt.world.sources``):
+        ``osm`` when ``osm`` is set, ``xml`` for a path, else the source up to its first ``:``
+        (``canyon``, ``sionna`` of ``sionna:<name>``, a plug-in's ``<name>[:<argument>]``)."""
+        if self.osm:
+            return "osm"
+        if self.is_path:
+            return "xml"
+        return self.source.split(":", 1)[0]
+
+    @property
+    def source_arg(self) -> str:
+        """What follows the plug-in name and ``:`` in ``source`` ('' for none or a path)."""
+        if self.is_path or ":" not in self.source:
+            return ""
+        return self.source.split(":", 1)[1]
+
+    @property
     def xml_path(self) -> Path:
         """The XML file of a mesh scene (a path as given, or a bundled scene's file)."""
         if self.is_bundled:
@@ -181,11 +211,18 @@ class SceneConfig:
         if self.is_bundled:
             bundled_scene_xml(self.source[len(BUNDLED_PREFIX):], f"{path}.source")
             return
-        if not self.is_canyon:
+        if self.is_path:
             check_path(self.source, f"{path}.source")
-        if not self.is_canyon and not self.source.endswith(".xml"):
-            raise bad_value(f"{path}.source", self.source, "'canyon', 'sionna:<name>' or a "
-                            "path ending in .xml")
+            if not self.source.endswith(".xml"):
+                raise bad_value(f"{path}.source", self.source, "'canyon', 'sionna:<name>', a "
+                                "path ending in .xml or a registered scene source's name")
+            return
+        # a registered scene source's name (the canyon's or a plug-in's), looked up when the
+        # run is assembled (veriloc_rt.sim.plugins), above the registry's package
+        if not _SOURCE_NAME.fullmatch(self.source):
+            raise bad_value(f"{path}.source", self.source, "'canyon', 'sionna:<name>', a path "
+                            "ending in .xml or a registered scene source's name "
+                            "('<name>' or '<name>:<argument>')")
 
 
 @dataclass(frozen=True)

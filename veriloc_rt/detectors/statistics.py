@@ -4,7 +4,7 @@ Every detector decides by comparing one number per point with its configured thr
 verdict *is* that comparison (each detector computes the verdict from the statistic, one code
 path): valid iff ``stat <= threshold`` (ABSA, Handshake, Tracking: a deviation) or
 ``stat >= threshold`` (HMAC, DigSig: a verified share). Sweeping the threshold over the observed
-statistics gives the detector's ROC (:mod:`veriloc_rt.report.roc`). Rules that reject or accept
+statistics gives the detector's ROC (:mod:`veriloc_rt.analysis.roc`). Rules that reject or accept
 whatever the threshold (a missing fix, an undetected BS) give ``inf`` or the statistic's
 accepting end (0 for a deviation, 1 for a share); the detectors' module docstrings say which.
 """

@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-from .intervals import binomial_ci, ci_suffix
+from ..analysis.intervals import binomial_ci, ci_suffix
 
 __all__ = ["TAG_THRESHOLD_DB", "MULTIPATH_PENALTY_DB", "multipath_penalty_db", "tag_margin_db",
            "link_arrays",

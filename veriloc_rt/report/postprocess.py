@@ -26,7 +26,7 @@ from pathlib import Path
 from ..config import config_from_dict, patch_data
 from ..errors import InputError
 from ..fileio import atomic_write_text, json_text
-from .detection import analyse_detection
+from ..analysis.detection import analyse_detection
 from .paper import PAPER_OUTCOMES, PAPER_RATES, SCENARIOS, tolerance
 from .results import read_rows, results_path
 from .roc_report import ROC_TITLE, format_detection, plot_roc, write_roc_csv

@@ -19,7 +19,7 @@ import numpy as np
 from ..config import config_from_dict
 from ..errors import InputError
 from . import plots
-from .detection import analyse_detection
+from ..analysis.detection import analyse_detection
 from .paper import PAPER_RATES
 from .results import read_rows, results_path
 from .roc_report import ROC_TITLE, plot_roc

@@ -38,7 +38,7 @@ from ..fileio import atomic_output, naming
 from ..detectors.outcomes import DETECTORS, OUTCOMES, TRP_DETECTORS, PointRow
 from ..detectors.statistics import STAT_COLUMNS, TRP_STAT_COLUMNS
 from ..errors import short_repr
-from .intervals import binomial_ci, ci_suffix
+from ..analysis.intervals import binomial_ci, ci_suffix
 
 __all__ = ["CSV_COLUMNS", "extra_columns", "TRP_COLUMNS", "TRP_DETECTOR_COLUMNS", "LINK_COLUMNS", "ResultsWriter", "read_rows",
            "parse_rows", "detectors_of", "scenario_metrics", "results_path", "links_path"]

@@ -1,6 +1,6 @@
 """The detection analysis on disk: ``roc.csv``, ``roc.png`` and the text summary of it.
 
-``roc.csv`` (:data:`~veriloc_rt.report.detection.ROC_COLUMNS`): one row per ROC vertex of each
+``roc.csv`` (:data:`~veriloc_rt.analysis.detection.ROC_COLUMNS`): one row per ROC vertex of each
 decision (the five detectors, then ``Integrity`` and ``AuthShare`` in a run with more than
 three TRPs, ``KofN``, ``NPFusion``) and attack, in the order the curve runs
 from accept-all to reject-all. ``roc.png``: one panel per attack, false-alarm rate
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..detectors.outcomes import DETECTORS, TRP_DETECTORS
 from ..fileio import atomic_output
-from .detection import FUSED, ROC_COLUMNS, DetectionAnalysis
+from ..analysis.detection import FUSED, ROC_COLUMNS, DetectionAnalysis
 from .plots import drawn
 
 __all__ = ["LABELS", "ROC_TITLE", "format_detection", "plot_roc", "write_roc_csv"]

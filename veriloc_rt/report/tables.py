@@ -35,7 +35,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from ..errors import InputError
-from .intervals import CI_SUFFIX
+from ..analysis.intervals import CI_SUFFIX
 
 __all__ = ["RunTables", "TABLES", "load_run", "export_parquet", "export_mat", "EXPORT_FORMATS"]
 

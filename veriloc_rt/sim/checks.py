@@ -23,8 +23,7 @@ from ..errors import InputError
 from ..phy.security.keys import load_keys
 from ..world.geometry import Geometry, build_geometry
 from .plugins import check_plugin_names
-from ..world.scene.export import scene_itu_materials
-from ..world.scene.osm import OSM_MATERIALS
+from ..world.sources import scene_source
 
 log = logging.getLogger(__name__)
 
@@ -97,26 +96,10 @@ def check_materials(cfg: Config) -> None:
     materials at the carrier frequency (ITU-R P.2040-3 Table 3 fits each material over given
     frequency ranges; Sionna refuses others). Checked only for ray tracing: UMa ignores them."""
     f = cfg.propagation.carrier_frequency_hz
-    if cfg.scene.is_canyon:
-        for name in ("building_material", "ground_material"):
-            problem = itu_material_problem(getattr(cfg.scene, name), f)
-            if problem:
-                raise InputError(f"scene.{name}", f"{problem} (propagation.carrier_frequency_hz)")
-        return
-    if cfg.scene.osm:
-        for name in OSM_MATERIALS:
-            problem = itu_material_problem(name, f)
-            if problem:
-                raise InputError("scene.osm", f"{problem} (OSM buildings map to "
-                                 f"{', '.join(OSM_MATERIALS)}; propagation.carrier_frequency_hz)")
-        problem = itu_material_problem(cfg.scene.ground_material, f)
-        if problem:
-            raise InputError("scene.ground_material", f"{problem} (propagation.carrier_frequency_hz)")
-        return
-    for name in scene_itu_materials(cfg.scene.xml_path):
+    for field, name, message in scene_source(cfg).materials(cfg):
         problem = itu_material_problem(name, f)
         if problem:
-            raise InputError("scene.source", f"{cfg.scene.source}: {problem}")
+            raise InputError(field, message.replace("{problem}", problem))
 
 
 def check_inputs(cfg: Config, scene_dir: str | Path) -> Geometry:

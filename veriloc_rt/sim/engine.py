@@ -7,7 +7,7 @@ point with :class:`~veriloc_rt.sim.runner.ScenarioRunner`, writing each row to
 folder's chain store (:mod:`~veriloc_rt.sim.chain_store`). ``resume=True`` keeps the rows and
 chain results already on disk (the config must be the one that produced them) and continues
 after them; the result is the same as an uninterrupted run. At the end it writes
-``metrics.json`` (with the detection analysis of :mod:`~veriloc_rt.report.detection`: ROC, AUC,
+``metrics.json`` (with the detection analysis of :mod:`~veriloc_rt.analysis.detection`: ROC, AUC,
 fused decisions), ``roc.csv``, ``run.json`` and the plots. The folder's lock, the checks before a run writes
 into it and ``run.json``: :mod:`~veriloc_rt.sim.run_folder`.
 
@@ -36,7 +36,7 @@ from ..inputs import read_text
 from ..propagation.models import PROPAGATION_REGISTRY
 from ..propagation.raytrace import Propagation
 from ..report import plots
-from ..report.detection import analyse_detection
+from ..analysis.detection import analyse_detection
 from ..report.roc_report import ROC_TITLE, plot_roc, write_roc_csv
 from ..report.paper import PAPER_RATES
 from ..report.propagation_summary import summarize

@@ -48,7 +48,7 @@ from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import parse_json, read_text
 from ..report import plots
-from ..report.intervals import CI_SUFFIX, bootstrap_mean_ci, ci_suffix
+from ..analysis.intervals import CI_SUFFIX, bootstrap_mean_ci, ci_suffix
 from ..rng import stream
 from .engine import Progress, run
 from .blas import one_blas_thread
@@ -208,7 +208,7 @@ def _aggregate_roc(per_realisation: list[dict], seed: int, level: float) -> dict
     """The ``roc`` block of a Monte Carlo: per attack and decision the mean over the
     realisations of ``auc``, ``pd_at_false_alarm``, ``benign_accept`` and ``attack_reject``,
     each with ``<key>_ci95``, a percentile bootstrap of the mean over the realisations
-    (:func:`~veriloc_rt.report.intervals.bootstrap_mean_ci`, stream
+    (:func:`~veriloc_rt.analysis.intervals.bootstrap_mean_ci`, stream
     ``("bootstrap-realisations", attack, decision)`` of the seed); ``uninformative``: the
     decisions flagged in any realisation; empty when no realisation has a ``roc`` block."""
     rocs = [m.get("roc") for m in per_realisation if m.get("roc")]

@@ -6,7 +6,7 @@ compare.run_compare` runs it on ray tracing and on its TR 38.901 stochastic twin
 topology, trajectory, keys, noise and adversary draws); from both run folders each decision's
 detection probability at :data:`TARGET_FALSE_ALARM` is read off its ROC (the vertex with the
 highest detection among those whose false alarm on the benign fixes is at most the target:
-:func:`~veriloc_rt.report.roc.detection_at_false_alarm`), per attack, with a 95 % interval.
+:func:`~veriloc_rt.analysis.roc.detection_at_false_alarm`), per attack, with a 95 % interval.
 
 Every generated table is preceded by a stamp: a visible line (package version, config and its
 hash, points, seed, the model versions the table depends on) and the same in an HTML comment
@@ -35,7 +35,7 @@ from ..errors import InputError
 from ..fileio import atomic_write_text
 from ..propagation import tr38901
 from ..propagation.raytrace import CACHE_VERSION
-from ..report.detection import FUSED, analyse_detection
+from ..analysis.detection import FUSED, analyse_detection
 from ..report.results import read_rows, results_path
 
 log = logging.getLogger(__name__)
@@ -99,7 +99,7 @@ def detection_table(run_dir: str | Path, target: float = TARGET_FALSE_ALARM) -> 
     interval metrics.json holds for the same quantity (``roc.attacks.<attack>.<decision>.
     pd_at_false_alarm_ci95``) when it holds one. Empty when the run has no ROC."""
     from ..config import config_from_dict
-    from ..report.roc import detection_at_false_alarm
+    from ..analysis.roc import detection_at_false_alarm
 
     run_dir = Path(run_dir)
     info = json.loads((run_dir / "run.json").read_text())

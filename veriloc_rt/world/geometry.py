@@ -15,10 +15,10 @@ from ..config import Config
 from ..errors import InputError
 from ..fileio import atomic_files
 from ..rng import stream
-from .scene.canyon import UrbanCanyon, urban_canyon
+from .scene.canyon import UrbanCanyon
 from .scene.export import scene_bounds, write_scene
 from .scene.external import MeshScene
-from .scene.osm_write import osm_scene
+from .sources import scene_source
 from .sites import load_sites, nearest_serving, rooftop_sites
 from .streets import scene_streets
 from .topology import HexLayout, hex_layout
@@ -71,34 +71,14 @@ def build_trajectory(cfg: Config, scene) -> Trajectory:
     return ue
 
 
-def osm_scene_xml(scfg, scene_dir: str | Path) -> Path:
-    """The scene imported from ``scene.osm`` into ``scene_dir`` (reused when already there)."""
-    xml, city = osm_scene(scfg.osm, scene_dir, bbox_deg=scfg.osm_bbox_deg or None,
-                          radius_m=scfg.osm_radius_m, storey_m=scfg.osm_storey_m,
-                          default_height_m=scfg.osm_default_height_m,
-                          ground_material=scfg.ground_material,
-                          thickness_m=scfg.material_thickness_m)
-    if city is not None:
-        log.info("OSM: %d buildings, %d street nodes from %s", city.num_buildings,
-                 len(city.street_nodes), scfg.osm)
-    return xml
-
-
 def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
-    """Build (and write, for the canyon) the scene, the layout and both trajectories.
+    """Build the scene (the source ``scene.source`` names, :mod:`.sources`), the layout and both
+    trajectories, and write the cropped scene.
 
-    :param scene_dir: where the canyon's XML + PLY files go
+    :param scene_dir: where the cropped scene's XML + PLY files go
     """
-    full = mesh = None
-    if cfg.scene.is_canyon:
-        full = urban_canyon(cfg.scene, stream(cfg.seed, "scene-heights"))
-        scene = full
-    elif cfg.scene.osm:
-        # imported into its own folder (streets.json beside it), then cropped like any mesh
-        scene = mesh = MeshScene.from_xml(osm_scene_xml(cfg.scene, Path(scene_dir) / "osm"),
-                                          "scene.osm")
-    else:
-        scene = mesh = MeshScene.from_xml(cfg.scene.xml_path)
+    scene = scene_source(cfg).load(cfg, Path(scene_dir))
+    full, mesh = (None, scene) if isinstance(scene, MeshScene) else (scene, None)
     ue = build_trajectory(cfg, scene)
     adv = follower(ue, cfg.trajectory.adversary_lag_points,
                    cfg.trajectory.adversary_min_separation_m)

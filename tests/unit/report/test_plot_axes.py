@@ -190,7 +190,7 @@ def tiny_run(tmp_path_factory):
 
 
 def test_roc_takes_one_axes_per_attack(tiny_run):
-    from veriloc_rt.report.detection import analyse_detection
+    from veriloc_rt.analysis.detection import analyse_detection
     from veriloc_rt.report.results import read_rows, results_path
     from veriloc_rt.report.roc_report import plot_roc
 

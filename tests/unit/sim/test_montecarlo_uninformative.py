@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from veriloc_rt.cli import format_montecarlo
+from veriloc_rt.report.summary import format_montecarlo
 from veriloc_rt.detectors.outcomes import DETECTORS
 from veriloc_rt.report import plots
 from veriloc_rt.sim.montecarlo import aggregate

@@ -12,8 +12,9 @@ import pytest
 from veriloc_rt.cli import main
 from veriloc_rt.config import Config, TrajectoryConfig, config_from_dict
 from veriloc_rt.config.fields import json_schema, param, section
-from veriloc_rt.sim.live.editor import (check_config, editor_config, form_fields, range_text,
-                                        save_config, set_field)
+from veriloc_rt.live.editor import (PLUGIN_FIELDS, check_config, editor_config, form_fields,
+                                    range_text, save_config, set_field)
+from veriloc_rt.propagation.models import PROPAGATION_REGISTRY, PropagationModel
 
 
 @dataclass(frozen=True)
@@ -75,7 +76,9 @@ def test_form_has_every_config_field_with_its_metadata():
     for path, f in leaves.items():
         e, meta = form[path], f.metadata
         assert e["doc"] == meta["doc"], path
-        assert e["choices"] == (list(meta["choices"]) if meta["choices"] is not None else None)
+        if path not in PLUGIN_FIELDS:   # those: the registries' names (test below)
+            assert e["choices"] == (list(meta["choices"]) if meta["choices"] is not None
+                                    else None)
         lo_key = "exclusive_minimum" if meta["lo_open"] else "minimum"
         assert e[lo_key] == meta["lo"] and e["maximum"] == meta["hi"], path
         default = f.default
@@ -83,6 +86,28 @@ def test_form_has_every_config_field_with_its_metadata():
     n = form["trajectory.num_points"]
     meta = {f.name: f for f in dataclasses.fields(TrajectoryConfig)}["num_points"].metadata
     assert n["range"] == f"{meta['lo']} .. {meta['hi']}"
+
+
+def test_plugin_fields_offer_the_registered_names():
+    """propagation.model is a choice of the propagation registry's names and run.scenarios a
+    multiple choice of the threats' (with 'none'); a model registered after start-up is offered
+    on the next form, and gone once unregistered."""
+    form = {e["path"]: e for e in form_fields()}
+    m, s = form["propagation.model"], form["run.scenarios"]
+    assert (m["kind"], m["choices"]) == ("enum", list(PROPAGATION_REGISTRY.names()))
+    assert m["choices"][:3] == ["raytrace", "uma", "umi"] and m["default"] in m["choices"]
+    assert (s["kind"], s["choices"]) == ("choices", ["none", "fbs", "meaconing", "jamming"])
+    assert set(s["default"]) <= set(s["choices"])
+    assert form["detectors.extra"]["kind"] == "choices"
+    PROPAGATION_REGISTRY.register("editor_test_model", type("EditorTest", (PropagationModel,), {}))
+    try:
+        m = {e["path"]: e for e in form_fields()}["propagation.model"]
+        assert m["choices"][-1] == "editor_test_model"
+        assert m["range"].endswith('"editor_test_model"')
+    finally:
+        PROPAGATION_REGISTRY.unregister("editor_test_model")
+    assert "editor_test_model" not in {e["path"]: e for e in form_fields()}[
+        "propagation.model"]["choices"]
 
 
 @pytest.mark.parametrize("prop, text", [

@@ -6,8 +6,8 @@
   scripts and style sheet (package data: nothing is fetched from the network); these hold no
   data and are served to any local client;
 * ``GET /api/state?scenario=S&from=N`` the polled state
-  (:meth:`~veriloc_rt.sim.live.state.RunFolderState.state`), ``GET /api/scene`` the map's layer;
-* ``GET /api/form`` the editor's fields (:func:`~veriloc_rt.sim.live.editor.form_fields`),
+  (:meth:`~veriloc_rt.live.state.RunFolderState.state`), ``GET /api/scene`` the map's layer;
+* ``GET /api/form`` the editor's fields (:func:`~veriloc_rt.live.editor.form_fields`),
   ``GET /api/config`` the config being edited, and ``POST /api/validate``, ``/api/save``,
   ``/api/run`` (validate; save the JSON; save and start ``veriloc-rt run --out DIR -- CONFIG``,
   whose folder the live view then follows).
@@ -36,7 +36,7 @@ Who may ask, and what:
   at once (more get 503), so slow clients cannot hold the server; clients that hang up are
   logged at debug level, not printed;
 * messages from checking the files a config names only name the field
-  (:func:`~veriloc_rt.sim.live.editor.check_config` with ``file_details=False``).
+  (:func:`~veriloc_rt.live.editor.check_config` with ``file_details=False``).
 
 Child processes (the editor's runs, :func:`start_view_process`) are started as
 :func:`cli_command`: ``python -I -m veriloc_rt.cli``, so that nothing is imported from the current
@@ -68,8 +68,8 @@ from importlib import resources
 from pathlib import Path
 from urllib.parse import parse_qs, urlparse
 
-from ...errors import InputError, short_repr
-from ...inputs import parse_json
+from ..errors import InputError, short_repr
+from ..inputs import parse_json
 from .editor import check_config, editor_config, form_fields, save_config
 from .state import RunFolderState
 

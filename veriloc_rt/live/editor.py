@@ -19,16 +19,18 @@ import stat
 import tempfile
 from pathlib import Path
 
-from ...config import config_from_dict, config_schema, config_to_dict, load_config, patch_data
-from ...errors import InputError
-from ...fileio import atomic_output
-from ..checks import check_inputs
+from ..config import config_from_dict, config_schema, config_to_dict, load_config, patch_data
+from ..errors import InputError
+from ..fileio import atomic_output
+from ..sim.checks import check_inputs
+from ..sim.plugins import registered_choices
 
 __all__ = ["form_fields", "range_text", "check_config", "editor_config", "save_config",
-           "set_field", "named_files", "file_error", "FILE_FIELDS"]
+           "set_field", "named_files", "file_error", "FILE_FIELDS", "PLUGIN_FIELDS"]
 
-#: input kinds of the editor: ``kind`` of a :func:`form_fields` entry
-KINDS = ("integer", "number", "boolean", "string", "enum", "json")
+#: input kinds of the editor: ``kind`` of a :func:`form_fields` entry ('choices': a list of
+#: registered names, a multiple choice)
+KINDS = ("integer", "number", "boolean", "string", "enum", "choices", "json")
 #: the config's fields that name files or folders the input checks read, with their kind, and
 #: the value that reads nothing
 FILE_FIELDS = {"scene.source": ("scene file", "canyon"),
@@ -36,6 +38,9 @@ FILE_FIELDS = {"scene.source": ("scene file", "canyon"),
                "topology.sites": ("sites file", ""),
                "trajectory.source": ("trajectory file", "generator"),
                "security.keys_dir": ("key folder", None)}
+#: the fields whose choices the editor takes from the plug-in registries (scene.source is a
+#: file field: a path or a registered name, typed)
+PLUGIN_FIELDS = ("propagation.model", "run.scenarios", "detectors.extra")
 
 
 def _kind(prop: dict) -> str:
@@ -80,13 +85,33 @@ def form_fields(schema: dict | None = None, prefix: str = "") -> list[dict]:
     top), ``kind`` (one of :data:`KINDS`), ``default``, ``minimum``, ``maximum``,
     ``exclusive_minimum`` (None where the schema has none), ``choices`` (enum values or None),
     ``nullable``, ``range`` (:func:`range_text`) and ``doc`` (the field's description).
+    The config's fields that name plug-ins (``propagation.model``, ``run.scenarios``,
+    ``detectors.extra``: :func:`~veriloc_rt.sim.plugins.registered_choices`) offer the names
+    registered in this process: ``enum`` for one name, ``choices`` for a list of them.
     """
-    schema = config_schema() if schema is None else schema
+    if schema is None:
+        return [_registered(f) for f in _schema_fields(config_schema(), "")]
+    return _schema_fields(schema, prefix)
+
+
+def _registered(field: dict) -> dict:
+    names = registered_choices().get(field["path"])
+    if names is None or field["path"] not in PLUGIN_FIELDS:
+        return field
+    names = list(names)
+    if field["kind"] == "string":
+        return {**field, "kind": "enum", "choices": names, "range": range_text({"enum": names})}
+    return {**field, "kind": "choices", "choices": names,
+            "range": "a list of registered names: " + (", ".join(json.dumps(c) for c in names)
+                                                        or "none registered")}
+
+
+def _schema_fields(schema: dict, prefix: str) -> list[dict]:
     out: list[dict] = []
     for name, prop in schema["properties"].items():
         path = f"{prefix}.{name}" if prefix else name
         if prop.get("type") == "object" and "properties" in prop:
-            out += form_fields(prop, path)
+            out += _schema_fields(prop, path)
             continue
         out.append({
             "path": path, "section": prefix, "kind": _kind(prop),

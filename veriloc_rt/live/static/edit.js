@@ -24,9 +24,11 @@ function makeInput(f) {
   let inp;
   if (f.kind === "boolean") {
     inp = el("input", {type: "checkbox"});
-  } else if (f.kind === "enum") {
+  } else if (f.kind === "enum" || f.kind === "choices") {
     inp = el("select", {});
     for (const c of f.choices) inp.append(el("option", {value: JSON.stringify(c), text: String(c)}));
+    // a list of registered names: several may be chosen
+    if (f.kind === "choices") { inp.multiple = true; inp.size = Math.min(f.choices.length, 6); }
   } else if (f.kind === "integer" || f.kind === "number") {
     inp = el("input", {type: "number", step: f.kind === "integer" ? "1" : "any"});
     if (f.minimum !== null) inp.min = f.minimum;
@@ -44,6 +46,14 @@ function setValue(f, v) {
   const inp = inputs[f.path];
   if (f.kind === "boolean") inp.checked = !!v;
   else if (f.kind === "enum") inp.value = JSON.stringify(v);
+  else if (f.kind === "choices") {
+    const want = (Array.isArray(v) ? v : []).map(c => JSON.stringify(c));
+    // a name the config gives that no plug-in here registered stays chosen, for the check to name
+    for (const c of want) {
+      if (![...inp.options].some(o => o.value === c)) inp.append(el("option", {value: c, text: JSON.parse(c)}));
+    }
+    for (const o of inp.options) o.selected = want.includes(o.value);
+  }
   else if (f.kind === "json") inp.value = v === null || v === undefined ? "" : JSON.stringify(v);
   else inp.value = v === null || v === undefined ? "" : String(v);
   markChanged(f);
@@ -54,6 +64,7 @@ function readValue(f) {
   const inp = inputs[f.path];
   if (f.kind === "boolean") return inp.checked;
   if (f.kind === "enum") return JSON.parse(inp.value);
+  if (f.kind === "choices") return Array.from(inp.selectedOptions, o => JSON.parse(o.value));
   const t = inp.value.trim();
   if (f.kind === "integer" || f.kind === "number") {
     if (t === "") return f.nullable ? null : t;

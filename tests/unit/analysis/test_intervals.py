@@ -1,4 +1,4 @@
-"""The 95 % intervals of metrics.json (veriloc_rt/report/intervals.py) against independent
+"""The 95 % intervals of metrics.json (veriloc_rt/analysis/intervals.py) against independent
 derivations: Clopper-Pearson from the beta quantiles and the binomial tail it inverts, the
 vectorised bootstrap statistics against the ROC module on each resample, and the bootstrap's
 coverage on a case with a known answer."""
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import beta, binom, norm
 
-from veriloc_rt.report.intervals import (binomial_ci, bootstrap_mean_ci, bootstrap_roc_ci,
+from veriloc_rt.analysis.intervals import (binomial_ci, bootstrap_mean_ci, bootstrap_roc_ci,
                                          resampled_auc_pd)
 from veriloc_rt.report.roc import auc, detection_at_false_alarm, roc_curve
 

@@ -1,4 +1,4 @@
-"""ROC and AUC (report.roc) against closed forms and an independent count.
+"""ROC and AUC (analysis.roc) against closed forms and an independent count.
 
 * two equal-variance Gaussians, means 0 and d: AUC = Phi(d / sqrt 2) (the probability that an
   attack draw exceeds a benign one; Hanley & McNeil 1982, binormal model), within
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from veriloc_rt.report.roc import (auc, detection_at_false_alarm, operating_point, roc_curve)
+from veriloc_rt.analysis.roc import (auc, detection_at_false_alarm, operating_point, roc_curve)
 
 #: standard errors allowed between the sample AUC and the closed form (a 4-sigma band: the
 #: test fails by chance with probability ~6e-5)

@@ -1,4 +1,4 @@
-"""Fused decisions (report.fusion): k-of-n voting against a hand-written truth table, the
+"""Fused decisions (analysis.fusion): k-of-n voting against a hand-written truth table, the
 Neyman-Pearson threshold against hand-counted scores, and the fused test's false-alarm rate on
 synthetic data against its target."""
 
@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from veriloc_rt.report.fusion import NaiveBayesLR, kofn_votes, np_threshold, split_by_index
-from veriloc_rt.report.roc import auc, roc_curve
+from veriloc_rt.analysis.fusion import NaiveBayesLR, kofn_votes, np_threshold, split_by_index
+from veriloc_rt.analysis.roc import auc, roc_curve
 
 #: binomial standard deviations allowed between the achieved and the target false-alarm rate
 #: (the threshold's own estimate on the training points and the test share both count)

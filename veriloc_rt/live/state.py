@@ -30,12 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ...config import config_from_dict
-from ...detectors.outcomes import DETECTORS, OUTCOMES
-from ...errors import InputError
-from ...inputs import read_bytes
-from ...report.results import CSV_COLUMNS, fields_to_row, results_path, scenario_metrics
-from ..run_folder import run_is_alive
+from ..config import config_from_dict
+from ..detectors.outcomes import DETECTORS, OUTCOMES
+from ..errors import InputError
+from ..inputs import read_bytes
+from ..report.results import CSV_COLUMNS, fields_to_row, results_path, scenario_metrics
+from ..sim.run_folder import run_is_alive
 
 log = logging.getLogger(__name__)
 
@@ -196,7 +196,7 @@ def scene_layer(cfg) -> dict:
     ``bs``: [[x, y], ...]; ``ue``, ``adversary``: [[x, y], ...] per point; ``attack``:
     [first, stop) point indices of the attack window (None when empty); m throughout.
     """
-    from ...world.geometry import build_geometry
+    from ..world.geometry import build_geometry
 
     # built in a daemon thread: a server stopped mid-build exits while the thread still writes
     # here, and the folder's removal at exit must not print a traceback for files it races

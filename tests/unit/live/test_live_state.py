@@ -12,7 +12,7 @@ import pytest
 from veriloc_rt.config import Config, config_from_dict, config_to_dict
 from veriloc_rt.detectors.outcomes import DETECTORS, OUTCOMES, PointRow
 from veriloc_rt.report.results import CSV_COLUMNS, ResultsWriter, row_to_fields
-from veriloc_rt.sim.live.state import RateMeter, ResultsTail, RunFolderState, points_json
+from veriloc_rt.live.state import RateMeter, ResultsTail, RunFolderState, points_json
 from veriloc_rt.sim.run_folder import OWNER_FILE
 
 #: rates and ETAs below are exact ratios of small integers; float rounding only
@@ -201,7 +201,7 @@ def test_monte_carlo_folder_follows_the_running_realisation(tmp_path):
 def test_map_of_a_mesh_scene_has_the_roofs_not_walls_or_ground():
     from pathlib import Path
 
-    from veriloc_rt.sim.live.state import scene_layer
+    from veriloc_rt.live.state import scene_layer
     from veriloc_rt.world.scene.external import MeshScene
 
     mini = Path(__file__).resolve().parents[3] / "scenes" / "mini_canyon"
