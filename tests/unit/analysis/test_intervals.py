@@ -13,7 +13,7 @@ from scipy.stats import beta, binom, norm
 
 from veriloc_rt.analysis.intervals import (binomial_ci, bootstrap_mean_ci, bootstrap_roc_ci,
                                          resampled_auc_pd)
-from veriloc_rt.report.roc import auc, detection_at_false_alarm, roc_curve
+from veriloc_rt.analysis.roc import auc, detection_at_false_alarm, roc_curve
 
 #: scipy's beta quantiles and binomial tail agree with binomtest's root-finding to ~1e-12
 #: relative; 1e-9 leaves room for its bracketing tolerance
