@@ -154,13 +154,17 @@ class ReceiverConfig:
                                          "test of the whitened RSTD residuals (the benign "
                                          "false-alarm rate it is designed for; a stated "
                                          "choice)", lo=1e-9, hi=0.5)
-    range_error_model: str = param("crlb", "weighted fit: each ToA's range std is 'crlb' (the "
+    range_error_model: str = param("auto", "weighted fit: each ToA's range std is 'crlb' (the "
                                    "CRLB from its peak SNR plus range_std_floor_m), or "
                                    "'overbound' (the larger of that and the Gaussian overbound "
                                    "of the measured first-arrival error in its peak-SNR bin, "
                                    "from the calibration table veriloc_rt/data/"
-                                   "range_overbound.json: UMa fast fading, this simulator)",
-                                   choices=("crlb", "overbound"))
+                                   "range_overbound.json: UMa fast fading, this simulator); "
+                                   "'auto': 'crlb' on a channel without multipath (UMa/UMi "
+                                   "uma_mode 'pathloss_only'), 'overbound' on every other "
+                                   "(fast fading, ray tracing: late, heavy-tailed first "
+                                   "arrivals the CRLB does not describe)",
+                                   choices=("auto", "crlb", "overbound"))
     fault_exclusion: bool = param(True, "weighted fit: exclude the anchor whose removal best "
                                   "explains a failed test, and re-test, while a degree of "
                                   "freedom remains (RAIM-style FDE)")
@@ -196,3 +200,12 @@ class ReceiverConfig:
 
     def __post_init__(self) -> None:
         self.validate("")  # from_dict names the section
+
+
+def resolved_range_error_model(receiver: "ReceiverConfig", model: str, uma_mode: str) -> str:
+    """``receiver.range_error_model`` with 'auto' resolved for the propagation ``model`` and its
+    ``uma_mode``: 'crlb' where the channel has no multipath (a stochastic model's
+    'pathloss_only'; the CRLB describes the ToA error there, docs/trps.md), else 'overbound'."""
+    if receiver.range_error_model != "auto":
+        return receiver.range_error_model
+    return "crlb" if model in ("uma", "umi") and uma_mode == "pathloss_only" else "overbound"

@@ -23,7 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...config import ArrayConfig, Config
-from ...config.channel import ChannelConfig, ReceiverConfig
+from ...config.channel import ChannelConfig, ReceiverConfig, resolved_range_error_model
 from ...config.nr import NRConfig
 from ...config.security import SecurityConfig
 from ...constants import SPEED_OF_LIGHT
@@ -90,6 +90,8 @@ class PositioningChain:
         """
         sec = cfg.security if security is None else security
         rx = (cfg.receiver if receiver is None else receiver).scanned_for(max_doppler_hz)
+        rx = replace(rx, range_error_model=resolved_range_error_model(
+            rx, cfg.propagation.model, cfg.propagation.uma_mode))
         return cls(cfg.nr, sec, cfg.channel, rx, cfg.propagation.ue_array,
                    cfg.propagation.carrier_frequency_hz, keys, noise=noise,
                    uplink_noise=uplink_noise)
@@ -140,6 +142,8 @@ class PositioningChain:
                             receiver.fault_exclusion,
                             overbound=(RangeOverbound.shipped()
                                        if receiver.range_error_model == "overbound" else None))
+        # 'auto' is resolved by from_config (it knows the channel); a chain built directly
+        # from a ReceiverConfig left at 'auto' uses the CRLB alone
         self.angles = AngleStage(AoAEstimator(receiver.aoa_method, receiver.aoa_num_sources or None,
                                               ue_array.spacing_wavelengths, axis),
                                  receiver.aoa_snapshots)

@@ -93,6 +93,28 @@ def test_shipped_table_says_what_it_is():
 
 
 def test_config_selects_the_model():
-    assert config_from_dict({}).receiver.range_error_model == "crlb"
+    assert config_from_dict({}).receiver.range_error_model == "auto"
     cfg = config_from_dict({"receiver": {"range_error_model": "overbound"}})
     assert cfg.receiver.range_error_model == "overbound"
+
+
+@pytest.mark.parametrize("prop, model", [
+    ({"model": "uma", "uma_mode": "pathloss_only"}, "crlb"),   # no multipath: the CRLB holds
+    ({"model": "umi", "uma_mode": "pathloss_only"}, "crlb"),
+    ({"model": "uma", "uma_mode": "fast_fading"}, "overbound"),   # late, heavy-tailed arrivals
+    ({"model": "umi"}, "overbound"),
+    ({"model": "raytrace"}, "overbound"),
+])
+def test_auto_model_follows_the_channel(prop, model):
+    from veriloc_rt.config.channel import resolved_range_error_model
+    from veriloc_rt.phy.chain import PositioningChain
+
+    cfg = config_from_dict({"propagation": prop, "topology": {"num_trps": 9}})
+    assert resolved_range_error_model(cfg.receiver, cfg.propagation.model,
+                                      cfg.propagation.uma_mode) == model
+    chain = PositioningChain.from_config(cfg, max_doppler_hz=100.0)
+    assert (chain.fix.overbound is not None) == (model == "overbound")
+    # an explicit choice is kept whatever the channel
+    fixed = config_from_dict({"propagation": prop, "receiver": {"range_error_model": "crlb"}})
+    assert resolved_range_error_model(fixed.receiver, fixed.propagation.model,
+                                      fixed.propagation.uma_mode) == "crlb"
