@@ -60,8 +60,12 @@ def load_preset(name: str) -> Config:
 def looks_like_preset(arg: str) -> bool:
     """``arg`` (a CONFIG argument) names a preset rather than a file: no existing file has that
     name, it does not end with ``.json`` and holds no path separator."""
-    return (not arg.endswith(".json") and "/" not in arg and "\\" not in arg
-            and not Path(arg).exists())
+    if arg.endswith(".json") or "/" in arg or "\\" in arg or "\0" in arg:
+        return False
+    try:
+        return not Path(arg).exists()
+    except (OSError, ValueError):   # a name no file can have (too long): the file reader's
+        return False                # one-line error names it
 
 
 def load_config_or_preset(arg: str | None, default: str | None = None) -> Config:
