@@ -252,8 +252,6 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
     t1 = time.perf_counter()
     if geometry.candidates is not None:
         geometry, prop = traced_power_serving(cfg, geometry, progress, cache_dir, workers)
-        if out:   # the chosen serving sets (the view before tracing showed the nearest)
-            plot_top_view(geometry, out / "scene_top_view.png")
     else:
         prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
