@@ -133,3 +133,85 @@ def test_traced_power_config_is_accepted(tmp_path):
     assert cfg.topology.selection == "traced_power" and not cfg.topology.uses_cell
     with pytest.raises(InputError):
         config_from_dict({"topology": {"selection": "traced_power"}})
+
+
+class _FakeModel:
+    """A propagation model whose BS -> UE power is a known function of (point, BS id): one
+    path of power ``_power(k, b)``; it records its calls."""
+
+    calls: list = []
+
+    def __call__(self, geometry, cfg, seed, *, progress=None, cache_dir="default",
+                 adversary_points=None, workers=1, ue_points=None):
+        P, T = geometry.serving.shape
+        on = np.ones(P, bool) if ue_points is None else ue_points
+        type(self).calls.append((geometry.serving.copy(), np.array(adversary_points),
+                                 np.array(on)))
+        k = np.arange(P)[:, None]
+        pw = np.where(on[:, None], _power(k, geometry.serving), 0.0)
+
+        def cir(t, tx):
+            return CIR(delays=np.ones((P, t, 1)) * 1e-6,
+                       gains=np.sqrt(pw[:, :t, None, None]).astype(complex) if t == T
+                       else np.ones((P, t, 1, 1), complex),
+                       aoa_az=np.zeros((P, t, 1)), aoa_zen=np.zeros((P, t, 1)),
+                       aod_az=np.zeros((P, t, 1)), aod_zen=np.zeros((P, t, 1)),
+                       doppler=np.zeros((P, t, 1)),
+                       interactions=np.zeros((P, t, 1, 1), np.uint8),
+                       valid=(pw[:, :t, None] > 0) if t == T else np.ones((P, t, 1), bool),
+                       tx_index=tx, tx_pos=np.zeros((P, t, 3)), rx_pos=np.zeros((P, 3)),
+                       los=np.zeros((P, t), bool), carrier_frequency=3.5e9)
+
+        from veriloc_rt.propagation.raytrace import Propagation
+        return Propagation(bs_ue=cir(T, geometry.serving), bs_adv=cir(T, geometry.serving),
+                           adv_ue=cir(1, np.zeros((P, 1), np.int64)))
+
+
+def _power(k, b):
+    """Received power of BS id ``b`` at point ``k``: larger for odd ids, varying with k."""
+    return 1e-9 * (1.0 + (b % 2) * 10.0) / (1.0 + ((b * 7 + k * 3) % 5))
+
+
+def test_engine_measures_the_strongest_candidates(tmp_path, monkeypatch):
+    from veriloc_rt.sim import engine
+    from veriloc_rt.world.geometry import Geometry
+    from veriloc_rt.world.trajectory import Trajectory
+
+    sites = _grid_sites(step=80.0, n=6)
+    csv = tmp_path / "s.csv"
+    csv.write_text("x,y,z\n" + "".join(f"{x},{y},{z}\n" for x, y, z in sites))
+    cfg = config_from_dict({"topology": {"selection": "traced_power", "sites": str(csv),
+                                         "num_trps": 4, "candidate_radius_m": 130.0},
+                            "propagation": {"model": "raytrace"},
+                            "run": {"scenarios": ["none", "meaconing"]}})
+    P = 12
+    rng = np.random.default_rng(8)
+    pos = np.concatenate([rng.uniform(0.0, 400.0, (P, 2)), np.full((P, 1), 1.5)], axis=1)
+    ue = Trajectory(np.arange(P, dtype=float), pos, np.zeros((P, 3)), np.arange(P, dtype=float),
+                    pos)
+    bs, serving, cand, used = candidate_sites(sites, pos[:, :2], 4, 130.0)
+    geo = Geometry(scene_xml=tmp_path / "x.xml", scene=None, full_canyon=None, layout=None,
+                   bs_pos=bs, serving=serving, ue=ue, adversary=ue, candidates=cand)
+
+    class _Registry:
+        def get(self, name):
+            assert name == "raytrace"
+            return _FakeModel
+
+    _FakeModel.calls = []
+    monkeypatch.setattr(engine, "PROPAGATION_REGISTRY", _Registry())
+    chosen, prop = engine.traced_power_serving(cfg, geo)
+    for k in range(P):
+        valid = [int(c) for c in cand[k] if c >= 0]
+        expect = sorted(valid, key=lambda b: (-_power(k, b), valid.index(b)))[:4]
+        assert list(chosen.serving[k]) == expect
+    assert not np.array_equal(chosen.serving, serving)     # not merely the nearest
+    assert np.array_equal(prop.bs_ue.tx_index, chosen.serving)
+    # the measured links' power is the candidates' traced power, to float rounding (1e-12 rel)
+    got = prop.bs_ue.path_power().sum(axis=-1)
+    np.testing.assert_allclose(got, _power(np.arange(P)[:, None], chosen.serving), rtol=1e-12)
+    (s1, adv1, ue1), (s2, adv2, ue2) = _FakeModel.calls
+    assert s1.shape[1] == cand.shape[1] and not adv1.any() and ue1.all()   # candidates only
+    assert np.array_equal(s2, chosen.serving) and not ue2.any()            # adversary only
+    assert np.array_equal(adv2, cfg.run.attack_points(P))
+    assert prop.stats["candidate_links"] == int((cand >= 0).sum())
