@@ -128,9 +128,12 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
     adv_prop = model(chosen, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
                      adversary_points=window, workers=workers, ue_points=np.zeros(P, bool))
     bs_ue = cand_prop.bs_ue.take_slots(col, serving)
-    stats = {"candidate_links": int((cand >= 0).sum()),
-             "candidate_trace": cand_prop.stats, "adversary_trace": adv_prop.stats,
-             "wall_s": time.perf_counter() - t0}
+    # the two traces' counts summed (the keys a single trace reports), each trace's own too
+    stats = {k: cand_prop.stats[k] + adv_prop.stats[k]
+             for k in cand_prop.stats if isinstance(cand_prop.stats[k], (int, float))
+             and isinstance(adv_prop.stats.get(k), (int, float))}
+    stats.update(wall_s=time.perf_counter() - t0, candidate_links=int((cand >= 0).sum()),
+                 candidate_trace=cand_prop.stats, adversary_trace=adv_prop.stats)
     log.info("traced-power selection: %d candidate links over %d points (%.1f per point), "
              "%d sites", stats["candidate_links"], P, stats["candidate_links"] / max(P, 1),
              len(geometry.bs_pos))

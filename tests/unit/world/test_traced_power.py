@@ -164,7 +164,8 @@ class _FakeModel:
 
         from veriloc_rt.propagation.raytrace import Propagation
         return Propagation(bs_ue=cir(T, geometry.serving), bs_adv=cir(T, geometry.serving),
-                           adv_ue=cir(1, np.zeros((P, 1), np.int64)))
+                           adv_ue=cir(1, np.zeros((P, 1), np.int64)),
+                           stats={"links": int(on.sum()) * T, "calls": 1})
 
 
 def _power(k, b):
@@ -215,3 +216,4 @@ def test_engine_measures_the_strongest_candidates(tmp_path, monkeypatch):
     assert np.array_equal(s2, chosen.serving) and not ue2.any()            # adversary only
     assert np.array_equal(adv2, cfg.run.attack_points(P))
     assert prop.stats["candidate_links"] == int((cand >= 0).sum())
+    assert prop.stats["links"] == P * cand.shape[1] and prop.stats["calls"] == 2
