@@ -132,11 +132,15 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
     stats = {k: cand_prop.stats[k] + adv_prop.stats[k]
              for k in cand_prop.stats if isinstance(cand_prop.stats[k], (int, float))
              and isinstance(adv_prop.stats.get(k), (int, float))}
+    reached = (cand_prop.bs_ue.has_path() & (cand >= 0)).sum(axis=1)   # [P] candidates
     stats.update(wall_s=time.perf_counter() - t0, candidate_links=int((cand >= 0).sum()),
+                 candidates_with_path=[int(np.min(reached)), float(np.median(reached)),
+                                       int(np.max(reached))],
                  candidate_trace=cand_prop.stats, adversary_trace=adv_prop.stats)
     log.info("traced-power selection: %d candidate links over %d points (%.1f per point), "
-             "%d sites", stats["candidate_links"], P, stats["candidate_links"] / max(P, 1),
-             len(geometry.bs_pos))
+             "%d sites; candidates with a path per point: min %d, median %g, max %d",
+             stats["candidate_links"], P, stats["candidate_links"] / max(P, 1),
+             len(geometry.bs_pos), *stats["candidates_with_path"])
     return chosen, Propagation(bs_ue=bs_ue, bs_adv=adv_prop.bs_adv, adv_ue=adv_prop.adv_ue,
                                stats=stats)
 

@@ -217,3 +217,8 @@ def test_engine_measures_the_strongest_candidates(tmp_path, monkeypatch):
     assert np.array_equal(adv2, cfg.run.attack_points(P))
     assert prop.stats["candidate_links"] == int((cand >= 0).sum())
     assert prop.stats["links"] == P * cand.shape[1] and prop.stats["calls"] == 2
+    # every real candidate has a path in the fake model (its power is positive everywhere)
+    per_point = (cand >= 0).sum(axis=1)
+    assert prop.stats["candidates_with_path"] == [int(per_point.min()),
+                                                  float(np.median(per_point)),
+                                                  int(per_point.max())]
