@@ -144,6 +144,9 @@ class Config:
                             "(propagation.ue_array.num_elements), or 0 for MDL")
 
     def _validate_world(self) -> None:
+        if self.topology.selection == "traced_power" and self.propagation.model != "raytrace":
+            raise bad_value("topology.selection", "traced_power", "'power' unless "
+                            "propagation.model is 'raytrace' (the received power is traced)")
         if self.scene.is_canyon and self.topology.placement == "rooftop":
             raise bad_value("topology.placement", "rooftop", "'auto' or 'fixed' on the canyon "
                             "(its BSs stand at topology.bs_height_m); rooftop needs a mesh scene")

@@ -248,7 +248,8 @@ class TopologyConfig:
                                  lo=0.5, hi=100.0)
     sites: str = param("", "CSV of BS sites with header x,y,z[,azimuth_deg] (m, scene frame; "
                        "z above the ground) replacing the hexagonal layout; each UE point is "
-                       "served by its num_trps nearest sites. Empty: the hexagonal layout")
+                       "served by its num_trps nearest sites (selection 'traced_power': the "
+                       "strongest by traced power). Empty: the hexagonal layout")
     num_trps: int = param(3, "TRPs (BS sites) whose PRS each point measures, slot 0 (the "
                           "strongest) the RSTD reference; 3 is the paper's serving set, TR 38.857 "
                           "and TR 38.855 evaluate 12-18", lo=MIN_TRPS, hi=MAX_TRPS)
@@ -260,7 +261,18 @@ class TopologyConfig:
                            "receiver.hearability_db), 'cell' (the three BSs of the hexagonal "
                            "cell holding the point: the paper's serving set; num_trps 3 and the "
                            "hexagonal layout only), 'auto' ('cell' for num_trps 3 on the "
-                           "hexagonal layout, else 'power')", choices=("auto", "power", "cell"))
+                           "hexagonal layout, else 'power'), 'traced_power' (a sites CSV "
+                           "and ray tracing only: every candidate site within "
+                           "candidate_radius_m of a point is traced to it, and the point "
+                           "measures the num_trps with the strongest traced received PRS power, "
+                           "the links' total path gain: every site transmits "
+                           "channel.bs_max_power_dbm; docs/trps.md)",
+                           choices=("auto", "power", "cell", "traced_power"))
+    candidate_radius_m: float = param(400.0, "selection 'traced_power': the candidate sites of "
+                                      "a point are those within this horizontal distance of it "
+                                      "(and always its num_trps nearest); it bounds the traced "
+                                      "links to the sites within the radius per point",
+                                      lo=1.0, hi=20000.0)
 
     @property
     def uses_cell(self) -> bool:
@@ -272,6 +284,10 @@ class TopologyConfig:
     def validate(self, path: str) -> None:
         if self.sites:
             check_path(self.sites, f"{path}.sites")
+        if self.selection == "traced_power" and not self.sites:
+            raise bad_value(f"{path}.selection", self.selection,
+                            "'power', 'cell' or 'auto' on the hexagonal layout: 'traced_power' "
+                            "chooses among the candidate sites of topology.sites")
         if self.selection == "cell" and (self.num_trps != CELL_BS or self.sites):
             raise bad_value(f"{path}.selection", self.selection,
                             f"'power' or 'auto' unless topology.num_trps is {CELL_BS} on the "

@@ -145,6 +145,27 @@ class CIR:
         return CIR(**{n: getattr(self, n)[points] for n in names},
                    carrier_frequency=self.carrier_frequency, meta=dict(self.meta))
 
+    def take_slots(self, column: np.ndarray, tx_index: np.ndarray) -> "CIR":
+        """The CIR with each point's link slots taken from columns of this one.
+
+        :param column: [num_points, k] int64, the slot of this CIR each new slot comes from
+        :param tx_index: [num_points, k] int64, the transmitter id of each new slot
+        """
+        col = np.asarray(column, dtype=np.int64)
+        if col.shape[0] != self.num_points:
+            raise ValueError(f"take_slots: {col.shape[0]} rows of columns for "
+                             f"{self.num_points} points")
+
+        def take(x: np.ndarray) -> np.ndarray:
+            idx = col.reshape(col.shape + (1,) * (x.ndim - 2))
+            return np.take_along_axis(x, idx, axis=1)
+
+        names = ("delays", "gains", "aoa_az", "aoa_zen", "aod_az", "aod_zen", "doppler",
+                 "interactions", "valid", "tx_pos", "los")
+        return CIR(**{n: take(getattr(self, n)) for n in names}, rx_pos=self.rx_pos,
+                   tx_index=np.asarray(tx_index, dtype=np.int64),
+                   carrier_frequency=self.carrier_frequency, meta=dict(self.meta))
+
     def to_sionna(self, point: int, num_time_steps: int = 1, sampling_frequency: float = 1.0,
                   normalize_delays: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Point ``point``'s links as Sionna RT's ``Paths.cir(out_type="numpy")`` returns them

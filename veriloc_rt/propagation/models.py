@@ -68,9 +68,11 @@ class RayTracing(PropagationModel):
     traces = True
 
     def __call__(self, geometry, cfg, seed, *, progress=None, cache_dir="default",
-                 adversary_points=None, workers=1):
+                 adversary_points=None, workers=1, ue_points=None):
+        """As :meth:`PropagationModel.__call__`; ``ue_points`` ([num_points] bool, None: all)
+        are the points whose BS -> UE links are traced (the others have no path)."""
         return trace(geometry, cfg, seed, progress=progress, cache_dir=cache_dir,
-                     adversary_points=adversary_points, workers=workers)
+                     adversary_points=adversary_points, ue_points=ue_points, workers=workers)
 
 
 @PROPAGATION_REGISTRY.register("uma")

@@ -23,7 +23,7 @@ import logging
 import resource
 import time
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -46,6 +46,7 @@ from ..report.results import (ResultsWriter, links_path, parse_rows, results_pat
                               scenario_metrics)
 from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
+from ..world.sites import strongest_serving
 from .checks import check_run_inputs, warn_silent_bs, warn_unreachable
 from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
 from .chain_store import ChainStore, config_digest
@@ -96,6 +97,52 @@ def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | No
     cb = (lambda d, n: progress(stage, d, n)) if progress else None
     return model(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
                  adversary_points=window, workers=workers)
+
+
+def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | None = None,
+                         cache_dir: str | Path | None = "default",
+                         workers: int = 1) -> tuple[Geometry, Propagation]:
+    """``topology.selection`` 'traced_power': every candidate site of each point
+    (``geometry.candidates``) is traced to it, the point measures the ``num_trps`` candidates
+    with the strongest received power (the links' total path gain, averaged over the UE's
+    elements; every site transmits ``channel.bs_max_power_dbm``, so the gain orders the
+    powers), and the adversary's links are then traced from the chosen sites. The candidates'
+    links are cached as any others; the chosen BS -> UE links are those already traced.
+
+    :returns: the geometry with the chosen serving sets (slot 0 the strongest), its links
+    """
+    model = PROPAGATION_REGISTRY.get(cfg.propagation.model)()
+    cand = geometry.candidates
+    P = geometry.num_points
+    padded = np.where(cand >= 0, cand, cand[:, :1])   # a repeated link is traced once
+    stage = "ray tracing"
+    cb = (lambda d, n: progress(stage, d, n)) if progress else None
+    t0 = time.perf_counter()
+    cand_prop = model(replace(geometry, serving=padded), cfg.propagation, cfg.seed, progress=cb,
+                      cache_dir=cache_dir, adversary_points=np.zeros(P, bool), workers=workers)
+    power = cand_prop.bs_ue.path_power().sum(axis=-1)            # [P, C] linear
+    serving, col = strongest_serving(cand, power, cfg.topology.num_trps)
+    chosen = replace(geometry, serving=serving)
+    attacks = any(s != "none" for s in cfg.run.scenarios)
+    window = cfg.run.attack_points(P) & attacks
+    adv_prop = model(chosen, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
+                     adversary_points=window, workers=workers, ue_points=np.zeros(P, bool))
+    bs_ue = cand_prop.bs_ue.take_slots(col, serving)
+    # the two traces' counts summed (the keys a single trace reports), each trace's own too
+    stats = {k: cand_prop.stats[k] + adv_prop.stats[k]
+             for k in cand_prop.stats if isinstance(cand_prop.stats[k], (int, float))
+             and isinstance(adv_prop.stats.get(k), (int, float))}
+    reached = (cand_prop.bs_ue.has_path() & (cand >= 0)).sum(axis=1)   # [P] candidates
+    stats.update(wall_s=time.perf_counter() - t0, candidate_links=int((cand >= 0).sum()),
+                 candidates_with_path=[int(np.min(reached)), float(np.median(reached)),
+                                       int(np.max(reached))],
+                 candidate_trace=cand_prop.stats, adversary_trace=adv_prop.stats)
+    log.info("traced-power selection: %d candidate links over %d points (%.1f per point), "
+             "%d sites; candidates with a path per point: min %d, median %g, max %d",
+             stats["candidate_links"], P, stats["candidate_links"] / max(P, 1),
+             len(geometry.bs_pos), *stats["candidates_with_path"])
+    return chosen, Propagation(bs_ue=bs_ue, bs_adv=adv_prop.bs_adv, adv_ue=adv_prop.adv_ue,
+                               stats=stats)
 
 
 def propagation_summary(geometry: Geometry, prop: Propagation) -> dict:
@@ -210,7 +257,10 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
         if not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
             plot_top_view(geometry, out / "scene_top_view.png")
     t1 = time.perf_counter()
-    prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
+    if geometry.candidates is not None:
+        geometry, prop = traced_power_serving(cfg, geometry, progress, cache_dir, workers)
+    else:
+        prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
     warn_unreachable(prop.bs_ue.has_path())
     warn_silent_bs(prop.bs_ue.has_path(), geometry.serving)

@@ -19,7 +19,7 @@ from .scene.canyon import UrbanCanyon
 from .scene.export import scene_bounds, write_scene
 from .scene.external import MeshScene
 from .sources import scene_source
-from .sites import load_sites, nearest_serving, rooftop_sites
+from .sites import candidate_sites, load_sites, nearest_serving, rooftop_sites
 from .streets import scene_streets
 from .topology import HexLayout, hex_layout
 from .trajectory import (Trajectory, check_points, follower, generate_graph_trajectory,
@@ -48,6 +48,9 @@ class Geometry:
     bs_azimuth: np.ndarray | None = None
     #: the mesh scene as loaded, before the crop (None for the canyon)
     full_mesh: MeshScene | None = None
+    #: [num_points, C] int64 ids into ``bs_pos``, -1 padding: the candidate sites of each point
+    #: (``topology.selection`` 'traced_power'; None otherwise), of which the strongest serve
+    candidates: np.ndarray | None = None
 
     @property
     def num_points(self) -> int:
@@ -83,7 +86,7 @@ def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
     adv = follower(ue, cfg.trajectory.adversary_lag_points,
                    cfg.trajectory.adversary_min_separation_m)
     check_points(scene, adv.pos, "adversary", "trajectory.adversary_lag_points")
-    layout, bs_pos, serving, azimuth = _place_bs(cfg, scene, ue)
+    layout, bs_pos, serving, azimuth, candidates = _place_bs(cfg, scene, ue)
     if mesh is not None:
         keep_near = np.concatenate([bs_pos[:, :2], ue.densified_xy(), adv.pos[:, :2]])
         cropped = mesh.crop(keep_near, cfg.scene.margin_m)
@@ -97,7 +100,7 @@ def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
                  "trajectory", cropped.num_buildings, mesh.num_buildings, cfg.scene.margin_m)
         return Geometry(scene_xml=Path(xml), scene=cropped, full_canyon=None, layout=layout,
                         bs_pos=bs_pos, serving=serving, ue=ue, adversary=adv,
-                        bs_azimuth=azimuth, full_mesh=mesh)
+                        bs_azimuth=azimuth, full_mesh=mesh, candidates=candidates)
     keep_near = np.concatenate([bs_pos[:, :2], ue.densified_xy(), adv.pos[:, :2]])
     cropped = full.crop(keep_near, cfg.scene.margin_m)
     bounds = scene_bounds(cropped, np.concatenate([bs_pos[:, :2], ue.pos[:, :2]]), pad=20.0)
@@ -107,25 +110,32 @@ def build_geometry(cfg: Config, scene_dir: str | Path) -> Geometry:
     log.info("canyon: %d of %d buildings within %.0f m of the BSs and the trajectory",
              cropped.num_buildings, full.num_buildings, cfg.scene.margin_m)
     return Geometry(scene_xml=Path(xml), scene=cropped, full_canyon=full, layout=layout,
-                    bs_pos=bs_pos, serving=serving, ue=ue, adversary=adv, bs_azimuth=azimuth)
+                    bs_pos=bs_pos, serving=serving, ue=ue, adversary=adv, bs_azimuth=azimuth,
+                    candidates=candidates)
 
 
 def _place_bs(cfg: Config, scene, ue: Trajectory):
     """BS positions and serving sets: a sites CSV (the num_trps nearest serve), or the
     hexagonal layout (the cell's three, or the num_trps nearest sites, serve) at a fixed height
-    or moved onto the nearest roofs.
+    or moved onto the nearest roofs. With ``topology.selection`` 'traced_power' the BSs are
+    every candidate site and the serving sets the nearest, until the traced powers choose.
 
     :returns: (layout or None, bs_pos [num_bs, 3] m, serving [num_points, num_trps], azimuths
-        or None)
+        or None, candidates [num_points, C] or None)
     :raises InputError: if a BS stands inside a building or off the scene
     """
     topo = cfg.topology
     xy = ue.pos[:, :2]
     if topo.sites:
         sites, az = load_sites(topo.sites)
-        bs_pos, serving, used = nearest_serving(sites, xy, topo.num_trps)
+        candidates = None
+        if topo.selection == "traced_power":
+            bs_pos, serving, candidates, used = candidate_sites(sites, xy, topo.num_trps,
+                                                                topo.candidate_radius_m)
+        else:
+            bs_pos, serving, used = nearest_serving(sites, xy, topo.num_trps)
         _check_bs(scene, bs_pos, topo.sites, [f"site {u + 1}" for u in used])
-        return None, bs_pos, serving, az[used]
+        return None, bs_pos, serving, az[used], candidates
     layout = hex_layout(topo, stream(cfg.seed, "topology", topo.iteration))
     bs_pos, serving = (layout.serving(xy) if topo.uses_cell
                        else layout.nearest(xy, topo.num_trps))
@@ -135,7 +145,7 @@ def _place_bs(cfg: Config, scene, ue: Trajectory):
         bs_pos = rooftop_sites(scene, bs_pos[:, :2], topo.mast_height_m)
     elif isinstance(scene, MeshScene):
         _check_bs(scene, bs_pos, "topology.bs_height_m", [f"BS {k}" for k in range(len(bs_pos))])
-    return layout, bs_pos, serving, None
+    return layout, bs_pos, serving, None, None
 
 
 def _check_bs(scene, bs_pos: np.ndarray, source: str, names: list[str]) -> None:

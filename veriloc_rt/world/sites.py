@@ -120,3 +120,48 @@ def nearest_serving(sites: np.ndarray, xy: np.ndarray, n: int = SERVING
             serving[k, j] = order.setdefault(int(near[k, j]), len(order))
     used = np.array(list(order), dtype=np.int64)
     return sites[used], serving, used
+
+
+def candidate_sites(sites: np.ndarray, xy: np.ndarray, n: int, radius: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Candidate sites of each point for ``topology.selection`` 'traced_power': the sites within
+    ``radius`` (horizontal distance) of the point, and always its ``n`` nearest, nearest first
+    (ties by file order); BS ids in order of first use over the candidate lists.
+
+    :param sites: [num_sites, 3] float64, m; xy: [num_points, 2] float64, m
+    :returns: (bs_pos [num_bs, 3] float64 m, serving [num_points, n] int64 (the ``n`` nearest,
+        a provisional serving set until the traced powers choose), candidates [num_points, C]
+        int64 ids into bs_pos, nearest first, rows padded with -1 (C the most any point has),
+        site index of each BS [num_bs] int64)
+    :raises InputError: if the file holds fewer than ``n`` sites
+    """
+    if len(sites) < n:
+        raise InputError("topology.num_trps", f"{n} TRPs per point, but the sites file holds "
+                         f"{len(sites)} sites")
+    d = np.linalg.norm(np.asarray(xy)[:, None, :2] - sites[None, :, :2], axis=-1)
+    near = np.argsort(d, axis=1, kind="stable")
+    keep = np.take_along_axis(d, near, axis=1) <= radius
+    keep[:, :n] = True
+    width = int(keep.sum(axis=1).max())
+    order: dict[int, int] = {}
+    cand = np.full((len(near), width), -1, dtype=np.int64)
+    for k in range(len(near)):
+        for j in np.flatnonzero(keep[k]):
+            cand[k, j] = order.setdefault(int(near[k, j]), len(order))
+    used = np.array(list(order), dtype=np.int64)
+    return sites[used], cand[:, :n].copy(), cand, used
+
+
+def strongest_serving(candidates: np.ndarray, power: np.ndarray, n: int
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The ``n`` candidates of each point with the largest received power, strongest first
+    (ties, e.g. candidates without a path, by the candidate order: nearest first).
+
+    :param candidates: [num_points, C] int64 ids, -1 padding (:func:`candidate_sites`)
+    :param power: [num_points, C] float64, linear received power of each candidate link
+    :returns: (serving [num_points, n] int64 ids, column [num_points, n] int64, the candidate
+        column each slot comes from)
+    """
+    score = np.where(candidates >= 0, np.asarray(power, dtype=float), -np.inf)
+    col = np.argsort(-score, axis=1, kind="stable")[:, :n]
+    return np.take_along_axis(candidates, col, axis=1), col
