@@ -19,7 +19,7 @@ import numpy as np
 from ..backend import import_sionna
 from ..config import RayTracingConfig
 from .polarization import apply_materials, project
-from .street_paths import duplicates
+from .street_paths import aligned, duplicates
 
 log = logging.getLogger(__name__)
 
@@ -198,23 +198,15 @@ class SionnaTracer:
             in row-major (tx, rx) order
         :returns: one row per returned pair
         """
-        rt, scene = self._rt, self.scene
+        scene = self.scene
         if fid.materials != self._materials:
             apply_materials(scene, fid.materials)
             self._materials = fid.materials
         tx_pos = np.atleast_2d(tx_pos)
         rx_pos = np.atleast_2d(rx_pos)
-        for name in list(scene.transmitters):
-            scene.remove(name)
-        for name in list(scene.receivers):
-            scene.remove(name)
-        for i, p in enumerate(tx_pos):
-            scene.add(rt.Transmitter(f"tx{i}", position=[float(v) for v in p]))
-        for i, p in enumerate(rx_pos):
-            scene.add(rt.Receiver(f"rx{i}", position=[float(v) for v in p]))
         enumerated = fid.edge_candidates != "sampled" and fid.diffraction and fid.max_depth >= 1
         self._wanted.links = pairs
-        buf = solve_buffer(self.solver, scene, max_depth=fid.max_depth,
+        buf = solve_buffer(self.solver, scene, tx_pos, rx_pos, max_depth=fid.max_depth,
                            max_num_paths_per_src=self.max_paths_per_src,
                            samples_per_src=fid.rays_per_source, los=fid.los,
                            specular_reflection=fid.specular_reflection,
@@ -225,7 +217,7 @@ class SionnaTracer:
         if enumerated:
             solver, generator = self._edge_solver(fid)
             generator.links = pairs
-            buf = solve_buffer(solver, scene, max_depth=fid.max_depth,
+            buf = solve_buffer(solver, scene, tx_pos, rx_pos, max_depth=fid.max_depth,
                                max_num_paths_per_src=10**9, samples_per_src=fid.rays_per_source,
                                los=False, specular_reflection=True, diffuse_reflection=False,
                                refraction=False, diffraction=True, seed=self.seed)
@@ -234,11 +226,17 @@ class SionnaTracer:
         return raw
 
 
-def solve_buffer(solver, scene, *, max_depth: int, max_num_paths_per_src: int,
-                 samples_per_src: int, los: bool, specular_reflection: bool,
-                 diffuse_reflection: bool, refraction: bool, diffraction: bool, seed: int):
-    """The steps of Sionna RT's ``PathSolver.__call__`` (synthetic arrays, no edge
-    diffraction, lit region on) up to its paths buffer, without building its ``Paths``.
+def solve_buffer(solver, scene, src: np.ndarray, tgt: np.ndarray, *, max_depth: int,
+                 max_num_paths_per_src: int, samples_per_src: int, los: bool,
+                 specular_reflection: bool, diffuse_reflection: bool, refraction: bool,
+                 diffraction: bool, seed: int):
+    """The steps of Sionna RT's ``PathSolver.__call__`` (synthetic arrays, devices with
+    Sionna's default orientation, no edge diffraction, lit region on) from sources ``src``
+    to targets ``tgt`` ([n, 3] m) up to its paths buffer, without building its ``Paths``.
+
+    The positions go to Dr.Jit as arrays: Sionna's ``Scene.sources`` writes each device's
+    position into its array with a kernel that holds the position (and the device's index)
+    as literals, one new kernel per position.
 
     ``Paths`` scatters the buffer into [rx, tx, path] tensors with index arithmetic on Python
     integers (the call's transmitter and receiver counts and its largest path count per link),
@@ -249,9 +247,15 @@ def solve_buffer(solver, scene, *, max_depth: int, max_num_paths_per_src: int,
     :returns: Sionna's PathsBuffer with the valid paths only
     """
     import drjit as dr   # deferred, as Sionna RT (import_sionna selects the Mitsuba variant)
-    scene.all_set(radio_map=False)
-    src_pos, src_ori, _, _ = scene.sources(True, True)
-    tgt_pos, tgt_ori, _, _ = scene.targets(True, True)
+    import mitsuba as mi
+    if scene.tx_array is None or scene.rx_array is None:
+        raise ValueError("the scene's tx_array and rx_array must be set")
+    # float32 as Sionna's device positions; read by the kernels of the caller's _extract too
+    keep = [aligned(c, np.float32) for c in (*np.asarray(src).T, *np.asarray(tgt).T)]
+    src_pos = mi.Point3f(*(mi.Float(c) for c in keep[:3]))
+    tgt_pos = mi.Point3f(*(mi.Float(c) for c in keep[3:]))
+    src_ori = dr.zeros(mi.Point3f, len(src))
+    tgt_ori = dr.zeros(mi.Point3f, len(tgt))
     dr.make_opaque(src_pos, tgt_pos, src_ori, tgt_ori)
     # Sionna's PathSolver has no public hook for its stages: its attributes are called in the
     # order of its __call__ (pinned Sionna RT version, tests/unit/propagation)
@@ -275,6 +279,7 @@ def solve_buffer(solver, scene, *, max_depth: int, max_num_paths_per_src: int,
         src_antenna_patterns=scene.tx_array.antenna_pattern.patterns,
         tgt_antenna_patterns=scene.rx_array.antenna_pattern.patterns)
     buf.discard_invalid()
+    buf.keep_alive = keep   # Dr.Jit may alias the arrays; the buffer's kernels read them
     return buf
 
 
