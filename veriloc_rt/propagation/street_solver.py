@@ -103,6 +103,7 @@ class StreetCandidateGenerator:
         self._alive += w_arrs
         wedges = wedge_geometry(dr.reinterpret_array(mi.MeshPtr, mi.UInt(w_arrs[0])),
                                 mi.UInt(w_arrs[1]), mi.UInt(w_arrs[2]))
+        dr.eval(wedges)
         # Sionna's 0-face is the one the incident ray comes from (ImageMethod checks
         # dot(-k, n0) > 0): keep the face chosen above even if wedge_geometry reoriented it
         n0 = _points(wedges.n0)
@@ -178,5 +179,8 @@ class WantedLinks:
 
 
 def _points(p) -> np.ndarray:
-    """Dr.Jit 3-vector array (NumPy view [3, n]) -> [n, 3] float64."""
-    return np.asarray(p, np.float64).reshape(3, -1).T
+    """Dr.Jit 3-vector array -> [n, 3] float64, read one coordinate at a time: Dr.Jit writes a
+    whole 3-vector array into NumPy's [3, n] layout with a kernel that has n compiled in (one
+    kernel per array size; docs/performance.md, "Cold start")."""
+    dr.eval(p)
+    return np.stack([np.asarray(c, np.float64) for c in (p.x, p.y, p.z)], axis=1)
