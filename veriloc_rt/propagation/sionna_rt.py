@@ -161,6 +161,9 @@ class SionnaTracer:
                              f"not {diffraction_coefficient!r}")
         self.scene.frequency = frequency
         self.scene.tx_array, self.scene.rx_array = polarimetric_arrays(rt)
+        #: (receive, transmit) ports of a path coefficient
+        self.ports = (len(self.scene.rx_array.antenna_pattern.patterns),
+                      len(self.scene.tx_array.antenna_pattern.patterns))
         self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
         # deferred: the module needs the Mitsuba variant import_sionna() selected
@@ -170,6 +173,10 @@ class SionnaTracer:
         self._wanted = WantedLinks(self.solver._candidate_generator)
         self.solver._candidate_generator = self._wanted
         self._edge_solvers: dict = {}   # (plane distance, target reflections) -> (solver, gen.)
+        # deferred, as above: the image method and field calculator of Sionna's PathSolver
+        from sionna.rt.path_solvers.field_calculator import FieldCalculator
+        from sionna.rt.path_solvers.image_method import ImageMethod
+        self._stages = (ImageMethod(), FieldCalculator())
         self.seed = int(seed) % (2**31 - 1)
         self.max_paths_per_src = 10**6
         self.last_num_edge_candidates = 0
@@ -206,31 +213,36 @@ class SionnaTracer:
         rx_pos = np.atleast_2d(rx_pos)
         enumerated = fid.edge_candidates != "sampled" and fid.diffraction and fid.max_depth >= 1
         self._wanted.links = pairs
-        buf = solve_buffer(self.solver, scene, tx_pos, rx_pos, max_depth=fid.max_depth,
+        buf = solve_buffer(self._wanted, self._stages, scene, tx_pos, rx_pos,
+                           max_depth=fid.max_depth,
                            max_num_paths_per_src=self.max_paths_per_src,
                            samples_per_src=fid.rays_per_source, los=fid.los,
                            specular_reflection=fid.specular_reflection,
                            diffuse_reflection=fid.diffuse_reflection,
                            refraction=fid.refraction, diffraction=sampled_diffraction(fid),
                            seed=self.seed)
-        raw = _extract(buf, len(tx_pos), len(rx_pos), pairs)
+        raw = _extract(buf, len(tx_pos), len(rx_pos), pairs, self.ports, fid.max_depth)
         if enumerated:
-            solver, generator = self._edge_solver(fid)
+            _, generator = self._edge_solver(fid)
             generator.links = pairs
-            buf = solve_buffer(solver, scene, tx_pos, rx_pos, max_depth=fid.max_depth,
+            buf = solve_buffer(generator, self._stages, scene, tx_pos, rx_pos,
+                               max_depth=fid.max_depth,
                                max_num_paths_per_src=10**9, samples_per_src=fid.rays_per_source,
                                los=False, specular_reflection=True, diffuse_reflection=False,
                                refraction=False, diffraction=True, seed=self.seed)
             self.last_num_edge_candidates = generator.last_num_candidates
-            raw = raw.merge(_extract(buf, len(tx_pos), len(rx_pos), pairs))
+            raw = raw.merge(_extract(buf, len(tx_pos), len(rx_pos), pairs, self.ports,
+                                     fid.max_depth))
         return raw
 
 
-def solve_buffer(solver, scene, src: np.ndarray, tgt: np.ndarray, *, max_depth: int,
+def solve_buffer(generator, stages: tuple, scene, src: np.ndarray, tgt: np.ndarray, *,
+                 max_depth: int,
                  max_num_paths_per_src: int, samples_per_src: int, los: bool,
                  specular_reflection: bool, diffuse_reflection: bool, refraction: bool,
                  diffraction: bool, seed: int):
-    """The steps of Sionna RT's ``PathSolver.__call__`` (synthetic arrays, devices with
+    """The steps of Sionna RT's ``PathSolver.__call__`` with the candidate ``generator`` and
+    ``stages`` (its ImageMethod and FieldCalculator) (synthetic arrays, devices with
     Sionna's default orientation, no edge diffraction, lit region on) from sources ``src``
     to targets ``tgt`` ([n, 3] m) up to its paths buffer, without building its ``Paths``.
 
@@ -257,9 +269,9 @@ def solve_buffer(solver, scene, src: np.ndarray, tgt: np.ndarray, *, max_depth: 
     src_ori = dr.zeros(mi.Point3f, len(src))
     tgt_ori = dr.zeros(mi.Point3f, len(tgt))
     dr.make_opaque(src_pos, tgt_pos, src_ori, tgt_ori)
-    # Sionna's PathSolver has no public hook for its stages: its attributes are called in the
-    # order of its __call__ (pinned Sionna RT version, tests/unit/propagation)
-    buf = solver._candidate_generator(
+    # the stages in the order of Sionna's PathSolver.__call__ (pinned Sionna RT version)
+    image_method, field_calculator = stages
+    buf = generator(
         mi_scene=scene.mi_scene, src_positions=src_pos, tgt_positions=tgt_pos,
         samples_per_src=samples_per_src, max_num_paths_per_src=max_num_paths_per_src,
         max_depth=max_depth, los=los, specular_reflection=specular_reflection,
@@ -269,10 +281,9 @@ def solve_buffer(solver, scene, src: np.ndarray, tgt: np.ndarray, *, max_depth: 
     dr.eval()
     buf.shrink()
     buf.detach_geometry()
-    buf = solver._image_method(scene=scene.mi_scene, paths=buf, src_positions=src_pos,
-                               tgt_positions=tgt_pos, diffraction=diffraction,
-                               diffraction_lit_region=True)
-    buf = solver._field_calculator(
+    buf = image_method(scene=scene.mi_scene, paths=buf, src_positions=src_pos,
+                       tgt_positions=tgt_pos, diffraction=diffraction, diffraction_lit_region=True)
+    buf = field_calculator(
         wavelength=scene.wavelength, paths=buf, samples_per_src=samples_per_src,
         diffraction=diffraction, src_positions=src_pos, tgt_positions=tgt_pos,
         src_orientations=src_ori, tgt_orientations=tgt_ori,
@@ -295,7 +306,8 @@ def polarimetric_arrays(rt) -> tuple:
                  for _ in range(2))
 
 
-def _extract(buf, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPaths:
+def _extract(buf, num_tx: int, num_rx: int, pairs: np.ndarray | None,
+             ports: tuple[int, int], max_depth: int) -> RawPaths:
     """Sionna paths buffer (valid paths, :func:`solve_buffer`) -> float64 arrays
     [num_links, num_paths, ...] in (tx, rx) pair order; num_paths is the largest path count of
     a (tx, rx) pair, the shorter rows padded with invalid paths (as Sionna's ``Paths``)."""
@@ -303,7 +315,7 @@ def _extract(buf, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPath
     import drjit as dr
     from sionna.rt.utils import theta_phi_from_unit_vec
     n = int(buf.buffer_size)
-    depth = int(buf._depth_dim_size)   # Sionna's buffer keeps it private (pinned version)
+    depth = max(1, max_depth)   # Sionna's interaction depth axis (PathsBuffer)
     if n:
         src = np.asarray(buf.source_indices, np.int64)
         tgt = np.asarray(buf.target_indices, np.int64)
@@ -338,13 +350,11 @@ def _extract(buf, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPath
                                        ("phi_t", phi_t), ("theta_r", theta_r),
                                        ("phi_r", phi_r))}
         inter_val = np.asarray(buf.interaction_types, np.uint8).reshape(n, depth)
-        ports = a_val.shape[1:]
     else:
         a_val, inter_val = 0.0, 0
         vals = dict.fromkeys(("tau", "theta_t", "phi_t", "theta_r", "phi_r"), 0.0)
-        ports = (len(buf.a), len(buf.a[0])) if buf.a else (2, 2)
     tau = scatter(vals["tau"], -1.0)
-    a = scatter(a_val, 0.0, np.complex128, ports)           # [R, T, N, rx ports, tx ports]
+    a = scatter(a_val, 0.0, np.complex128, tuple(ports))    # [R, T, N, rx ports, tx ports]
     valid = scatter(True, False, bool)
     th_t, ph_t = scatter(vals["theta_t"], 0.0), scatter(vals["phi_t"], 0.0)
     th_r, ph_r = scatter(vals["theta_r"], 0.0), scatter(vals["phi_r"], 0.0)
