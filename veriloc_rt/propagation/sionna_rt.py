@@ -19,7 +19,7 @@ import numpy as np
 from ..backend import import_sionna
 from ..config import RayTracingConfig
 from .polarization import apply_materials, project
-from .street_paths import duplicates
+from .street_paths import aligned, duplicates
 
 log = logging.getLogger(__name__)
 
@@ -161,6 +161,9 @@ class SionnaTracer:
                              f"not {diffraction_coefficient!r}")
         self.scene.frequency = frequency
         self.scene.tx_array, self.scene.rx_array = polarimetric_arrays(rt)
+        #: (receive, transmit) ports of a path coefficient
+        self.ports = (len(self.scene.rx_array.antenna_pattern.patterns),
+                      len(self.scene.tx_array.antenna_pattern.patterns))
         self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
         # deferred: the module needs the Mitsuba variant import_sionna() selected
@@ -170,6 +173,10 @@ class SionnaTracer:
         self._wanted = WantedLinks(self.solver._candidate_generator)
         self.solver._candidate_generator = self._wanted
         self._edge_solvers: dict = {}   # (plane distance, target reflections) -> (solver, gen.)
+        # deferred, as above: the image method and field calculator of Sionna's PathSolver
+        from sionna.rt.path_solvers.field_calculator import FieldCalculator
+        from sionna.rt.path_solvers.image_method import ImageMethod
+        self._stages = (ImageMethod(), FieldCalculator())
         self.seed = int(seed) % (2**31 - 1)
         self.max_paths_per_src = 10**6
         self.last_num_edge_candidates = 0
@@ -198,39 +205,93 @@ class SionnaTracer:
             in row-major (tx, rx) order
         :returns: one row per returned pair
         """
-        rt, scene = self._rt, self.scene
+        scene = self.scene
         if fid.materials != self._materials:
             apply_materials(scene, fid.materials)
             self._materials = fid.materials
         tx_pos = np.atleast_2d(tx_pos)
         rx_pos = np.atleast_2d(rx_pos)
-        for name in list(scene.transmitters):
-            scene.remove(name)
-        for name in list(scene.receivers):
-            scene.remove(name)
-        for i, p in enumerate(tx_pos):
-            scene.add(rt.Transmitter(f"tx{i}", position=[float(v) for v in p]))
-        for i, p in enumerate(rx_pos):
-            scene.add(rt.Receiver(f"rx{i}", position=[float(v) for v in p]))
         enumerated = fid.edge_candidates != "sampled" and fid.diffraction and fid.max_depth >= 1
         self._wanted.links = pairs
-        paths = self.solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=self.max_paths_per_src,
-                            samples_per_src=fid.rays_per_source, synthetic_array=True, los=fid.los,
-                            specular_reflection=fid.specular_reflection,
-                            diffuse_reflection=fid.diffuse_reflection,
-                            refraction=fid.refraction, diffraction=sampled_diffraction(fid),
-                            seed=self.seed)
-        raw = _extract(paths, len(tx_pos), len(rx_pos), pairs)
+        buf = solve_buffer(self._wanted, self._stages, scene, tx_pos, rx_pos,
+                           max_depth=fid.max_depth,
+                           max_num_paths_per_src=self.max_paths_per_src,
+                           samples_per_src=fid.rays_per_source, los=fid.los,
+                           specular_reflection=fid.specular_reflection,
+                           diffuse_reflection=fid.diffuse_reflection,
+                           refraction=fid.refraction, diffraction=sampled_diffraction(fid),
+                           seed=self.seed)
+        raw = _extract(buf, len(tx_pos), len(rx_pos), pairs, self.ports, fid.max_depth)
         if enumerated:
-            solver, generator = self._edge_solver(fid)
+            _, generator = self._edge_solver(fid)
             generator.links = pairs
-            paths = solver(scene, max_depth=fid.max_depth, max_num_paths_per_src=10**9,
-                           samples_per_src=fid.rays_per_source, synthetic_array=True, los=False,
-                           specular_reflection=True, diffuse_reflection=False,
-                           refraction=False, diffraction=True, seed=self.seed)
+            buf = solve_buffer(generator, self._stages, scene, tx_pos, rx_pos,
+                               max_depth=fid.max_depth,
+                               max_num_paths_per_src=10**9, samples_per_src=fid.rays_per_source,
+                               los=False, specular_reflection=True, diffuse_reflection=False,
+                               refraction=False, diffraction=True, seed=self.seed)
             self.last_num_edge_candidates = generator.last_num_candidates
-            raw = raw.merge(_extract(paths, len(tx_pos), len(rx_pos), pairs))
+            raw = raw.merge(_extract(buf, len(tx_pos), len(rx_pos), pairs, self.ports,
+                                     fid.max_depth))
         return raw
+
+
+def solve_buffer(generator, stages: tuple, scene, src: np.ndarray, tgt: np.ndarray, *,
+                 max_depth: int,
+                 max_num_paths_per_src: int, samples_per_src: int, los: bool,
+                 specular_reflection: bool, diffuse_reflection: bool, refraction: bool,
+                 diffraction: bool, seed: int):
+    """The steps of Sionna RT's ``PathSolver.__call__`` with the candidate ``generator`` and
+    ``stages`` (its ImageMethod and FieldCalculator) (synthetic arrays, devices with
+    Sionna's default orientation, no edge diffraction, lit region on) from sources ``src``
+    to targets ``tgt`` ([n, 3] m) up to its paths buffer, without building its ``Paths``.
+
+    The positions go to Dr.Jit as arrays: Sionna's ``Scene.sources`` writes each device's
+    position into its array with a kernel that holds the position (and the device's index)
+    as literals, one new kernel per position.
+
+    ``Paths`` scatters the buffer into [rx, tx, path] tensors with index arithmetic on Python
+    integers (the call's transmitter and receiver counts and its largest path count per link),
+    which Dr.Jit compiles in as literals: one new kernel for almost every call, and again for
+    every new drive (docs/performance.md, "Cold start"). :func:`_extract` does that
+    scattering in NumPy instead, on the same float32 values.
+
+    :returns: Sionna's PathsBuffer with the valid paths only
+    """
+    import drjit as dr   # deferred, as Sionna RT (import_sionna selects the Mitsuba variant)
+    import mitsuba as mi
+    if scene.tx_array is None or scene.rx_array is None:
+        raise ValueError("the scene's tx_array and rx_array must be set")
+    # float32 as Sionna's device positions; read by the kernels of the caller's _extract too
+    keep = [aligned(c, np.float32) for c in (*np.asarray(src).T, *np.asarray(tgt).T)]
+    src_pos = mi.Point3f(*(mi.Float(c) for c in keep[:3]))
+    tgt_pos = mi.Point3f(*(mi.Float(c) for c in keep[3:]))
+    src_ori = dr.zeros(mi.Point3f, len(src))
+    tgt_ori = dr.zeros(mi.Point3f, len(tgt))
+    dr.make_opaque(src_pos, tgt_pos, src_ori, tgt_ori)
+    # the stages in the order of Sionna's PathSolver.__call__ (pinned Sionna RT version)
+    image_method, field_calculator = stages
+    buf = generator(
+        mi_scene=scene.mi_scene, src_positions=src_pos, tgt_positions=tgt_pos,
+        samples_per_src=samples_per_src, max_num_paths_per_src=max_num_paths_per_src,
+        max_depth=max_depth, los=los, specular_reflection=specular_reflection,
+        diffuse_reflection=diffuse_reflection, refraction=refraction, diffraction=diffraction,
+        edge_diffraction=False, seed=seed)
+    buf.schedule()
+    dr.eval()
+    buf.shrink()
+    buf.detach_geometry()
+    buf = image_method(scene=scene.mi_scene, paths=buf, src_positions=src_pos,
+                       tgt_positions=tgt_pos, diffraction=diffraction, diffraction_lit_region=True)
+    buf = field_calculator(
+        wavelength=scene.wavelength, paths=buf, samples_per_src=samples_per_src,
+        diffraction=diffraction, src_positions=src_pos, tgt_positions=tgt_pos,
+        src_orientations=src_ori, tgt_orientations=tgt_ori,
+        src_antenna_patterns=scene.tx_array.antenna_pattern.patterns,
+        tgt_antenna_patterns=scene.rx_array.antenna_pattern.patterns)
+    buf.discard_invalid()
+    buf.keep_alive = keep   # Dr.Jit may alias the arrays; the buffer's kernels read them
+    return buf
 
 
 def sampled_diffraction(fid: RayTracingConfig) -> bool:
@@ -245,24 +306,59 @@ def polarimetric_arrays(rt) -> tuple:
                  for _ in range(2))
 
 
-def _extract(paths, num_tx: int, num_rx: int, pairs: np.ndarray | None) -> RawPaths:
-    """Sionna tensors -> float64 arrays [num_links, num_paths, ...] in (tx, rx) pair order."""
-    def arr(x, dtype=np.float64):
-        return np.asarray(x, dtype=dtype)
+def _extract(buf, num_tx: int, num_rx: int, pairs: np.ndarray | None,
+             ports: tuple[int, int], max_depth: int) -> RawPaths:
+    """Sionna paths buffer (valid paths, :func:`solve_buffer`) -> float64 arrays
+    [num_links, num_paths, ...] in (tx, rx) pair order; num_paths is the largest path count of
+    a (tx, rx) pair, the shorter rows padded with invalid paths (as Sionna's ``Paths``)."""
+    # deferred, as Sionna RT (import_sionna selects the Mitsuba variant)
+    import drjit as dr
+    from sionna.rt.utils import theta_phi_from_unit_vec
+    n = int(buf.buffer_size)
+    depth = max(1, max_depth)   # Sionna's interaction depth axis (PathsBuffer)
+    if n:
+        src = np.asarray(buf.source_indices, np.int64)
+        tgt = np.asarray(buf.target_indices, np.int64)
+        link = tgt * num_tx + src                         # Sionna's (rx, tx) order
+        order = np.argsort(link, kind="stable")
+        counts = np.bincount(link, minlength=num_rx * num_tx)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        rank = np.empty(n, np.int64)
+        rank[order] = np.arange(n) - first[link[order]]
+        num_paths = int(counts.max())
+    else:
+        link = rank = np.zeros(0, np.int64)
+        num_paths = 0
+    shape = (num_rx * num_tx, num_paths)
 
-    tau = arr(paths.tau)                                   # [R, T, N] (synthetic array)
-    num_paths = tau.shape[-1]
-    shape = (num_rx, num_tx, num_paths)
-    tau = tau.reshape(shape)
-    a = arr(paths.a[0]) + 1j * arr(paths.a[1])             # [R, rx ports, T, tx ports, N]
-    a = np.moveaxis(a.reshape(num_rx, a.shape[1], num_tx, a.shape[3], num_paths), (1, 3), (3, 4))
-    valid = arr(paths.valid, bool).reshape(shape)
-    th_r, ph_r = arr(paths.theta_r).reshape(shape), arr(paths.phi_r).reshape(shape)
-    th_t, ph_t = arr(paths.theta_t).reshape(shape), arr(paths.phi_t).reshape(shape)
-    inter = arr(paths.interactions, np.uint8)              # [D, R, T, N]
-    depth = inter.shape[0] if inter.ndim == 4 else 0
-    inter = np.moveaxis(inter.reshape((depth,) + shape), 0, -1) if depth else \
-        np.zeros(shape + (1,), np.uint8)
+    def scatter(values, fill, dtype=np.float64, extra=()):
+        out = np.full(shape + extra, fill, dtype)
+        if n:
+            out[link, rank] = values
+        return out.reshape((num_rx, num_tx, num_paths) + extra)
+
+    def f32(x):
+        return np.asarray(x, np.float32).astype(np.float64)
+
+    if n:
+        # Sionna's Paths: a [rx pattern, tx pattern] of Complex2f; angles from the unit vectors
+        a_val = np.stack([np.stack([f32(dr.real(v)) + 1j * f32(dr.imag(v)) for v in row], -1)
+                          for row in buf.a], -2)       # [n, rx ports, tx ports]
+        theta_t, phi_t = theta_phi_from_unit_vec(buf.k_tx)
+        theta_r, phi_r = theta_phi_from_unit_vec(buf.k_rx)
+        vals = {k: f32(v) for k, v in (("tau", buf.tau), ("theta_t", theta_t),
+                                       ("phi_t", phi_t), ("theta_r", theta_r),
+                                       ("phi_r", phi_r))}
+        inter_val = np.asarray(buf.interaction_types, np.uint8).reshape(n, depth)
+    else:
+        a_val, inter_val = 0.0, 0
+        vals = dict.fromkeys(("tau", "theta_t", "phi_t", "theta_r", "phi_r"), 0.0)
+    tau = scatter(vals["tau"], -1.0)
+    a = scatter(a_val, 0.0, np.complex128, tuple(ports))    # [R, T, N, rx ports, tx ports]
+    valid = scatter(True, False, bool)
+    th_t, ph_t = scatter(vals["theta_t"], 0.0), scatter(vals["phi_t"], 0.0)
+    th_r, ph_r = scatter(vals["theta_r"], 0.0), scatter(vals["phi_r"], 0.0)
+    inter = scatter(inter_val, 0, np.uint8, (depth,))      # [R, T, N, D]
     if pairs is None:
         t_idx, r_idx = np.meshgrid(np.arange(num_tx), np.arange(num_rx), indexing="ij")
         t_idx, r_idx = t_idx.ravel(), r_idx.ravel()

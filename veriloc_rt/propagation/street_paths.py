@@ -682,3 +682,23 @@ def duplicates(tau: np.ndarray, angles: np.ndarray, inter: np.ndarray,
         later = np.maximum(pa, pb)
         dup[la[same], later[same]] = True
     return dup
+
+
+#: Byte alignment of the NumPy buffers handed to Dr.Jit (its own allocations' alignment)
+JIT_ALIGNMENT = 64
+
+
+def aligned(x, dtype=None) -> np.ndarray:
+    """A C-contiguous copy of ``x`` whose data starts on a JIT_ALIGNMENT boundary.
+
+    Dr.Jit may alias a NumPy array instead of copying it, and its kernels that read the array
+    are compiled for its pointer's alignment (``align 1`` or ``align 64`` loads): a NumPy
+    buffer's address varies from run to run, so without this the same computation compiles
+    again in a later run.
+    """
+    x = np.asarray(x, dtype)
+    raw = np.empty(x.nbytes + JIT_ALIGNMENT, np.uint8)
+    start = -raw.ctypes.data % JIT_ALIGNMENT
+    out = raw[start:start + x.nbytes].view(x.dtype).reshape(x.shape)
+    out[...] = x
+    return out

@@ -18,8 +18,8 @@ from sionna.rt.constants import InteractionType
 from sionna.rt.path_solvers.paths_buffer import PathsBuffer
 from sionna.rt.utils.wedges import wedge_geometry
 
-from .street_paths import (DIFFRACTION, REFLECTION, Candidates, SceneGeometry, street_candidates,
-                           wanted_pairs)
+from .street_paths import (DIFFRACTION, REFLECTION, Candidates, SceneGeometry, aligned,
+                           street_candidates, wanted_pairs)
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +83,7 @@ class StreetCandidateGenerator:
             return buf
         # Dr.Jit may alias a contiguous NumPy array instead of copying it: keep every array
         # handed over alive until the solver is done with the buffer
-        self._alive = arrs = [np.ascontiguousarray(x) for x in (
+        self._alive = arrs = [aligned(x) for x in (
             _KIND[c.kind], c.shape, c.prim, c.vertex[..., 0], c.vertex[..., 1],
             c.vertex[..., 2], np.ones(c.kind.shape), c.src.astype(np.uint32),
             c.tgt.astype(np.uint32))]
@@ -98,16 +98,18 @@ class StreetCandidateGenerator:
         buf._tgt_indices = mi.UInt(arrs[8])
         g = self.geo
         f0 = c.face0
-        w_arrs = [np.ascontiguousarray(x, np.uint32) for x in (
+        w_arrs = [aligned(x, np.uint32) for x in (
             g.edge_shape[c.wedge], g.edge_prim[c.wedge, f0], g.edge_local[c.wedge, f0])]
         self._alive += w_arrs
         wedges = wedge_geometry(dr.reinterpret_array(mi.MeshPtr, mi.UInt(w_arrs[0])),
                                 mi.UInt(w_arrs[1]), mi.UInt(w_arrs[2]))
+        dr.eval(wedges)
         # Sionna's 0-face is the one the incident ray comes from (ImageMethod checks
         # dot(-k, n0) > 0): keep the face chosen above even if wedge_geometry reoriented it
         n0 = _points(wedges.n0)
         flip = np.einsum("ij,ij->i", n0, g.edge_n[c.wedge, f0]) < 0
         if flip.any():
+            flip = aligned(flip)
             self._alive.append(flip)
             wedges.swap_faces(mi.Bool(flip))
         dr.eval(wedges)
@@ -133,10 +135,15 @@ class StreetCandidateGenerator:
         length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
         u = d / np.where(length > 0, length, 1.0)[:, None]
         o = a + SEGMENT_END_MARGIN_M * u
-        o32, u32 = o.T.astype(np.float32), u.T.astype(np.float32)
-        ray = mi.Ray3f(mi.Point3f(o32), mi.Vector3f(u32))
-        ray.maxt = mi.Float(np.maximum(length - 2 * SEGMENT_END_MARGIN_M, 0).astype(np.float32))
+        # one array per coordinate: a [3, n] array would be read with the stride n compiled in,
+        # one kernel per segment count (docs/performance.md, "Cold start")
+        arrs = [aligned(x, np.float32) for x in (*o.T, *u.T,
+                                                  np.maximum(length - 2 * SEGMENT_END_MARGIN_M, 0))]
+        ray = mi.Ray3f(mi.Point3f(*(mi.Float(x) for x in arrs[:3])),
+                       mi.Vector3f(*(mi.Float(x) for x in arrs[3:6])))
+        ray.maxt = mi.Float(arrs[6])
         hit = np.asarray(self.mi_scene.ray_test(ray), bool)
+        del arrs   # read by ray_test, which has run
         return finite & ~hit & (length > 2 * SEGMENT_END_MARGIN_M)
 
 
@@ -165,12 +172,15 @@ class WantedLinks:
         wanted = wanted_pairs(self.links, dr.width(src_positions), dr.width(tgt_positions))
         src = np.asarray(buf.source_indices, np.int64)
         tgt = np.asarray(buf.target_indices, np.int64)
-        keep = np.flatnonzero(wanted[src, tgt]).astype(np.uint32)
+        keep = aligned(np.flatnonzero(wanted[src, tgt]), np.uint32)
         self._alive = keep      # Dr.Jit may alias the array (see StreetCandidateGenerator)
         buf = buf.gather(mi.UInt(keep))
         return buf
 
 
 def _points(p) -> np.ndarray:
-    """Dr.Jit 3-vector array (NumPy view [3, n]) -> [n, 3] float64."""
-    return np.asarray(p, np.float64).reshape(3, -1).T
+    """Dr.Jit 3-vector array -> [n, 3] float64, read one coordinate at a time: Dr.Jit writes a
+    whole 3-vector array into NumPy's [3, n] layout with a kernel that has n compiled in (one
+    kernel per array size; docs/performance.md, "Cold start")."""
+    dr.eval(p)
+    return np.stack([np.asarray(c, np.float64) for c in (p.x, p.y, p.z)], axis=1)

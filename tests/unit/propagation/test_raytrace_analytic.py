@@ -225,3 +225,27 @@ def test_reciprocal_tracing_with_diffraction(tracer_factory):
         assert np.angle(f["a"][i] / r["a"][j]) == pytest.approx(0.0, abs=0.05)
         assert f["phi_r"][i] == pytest.approx(r["phi_r"][j], abs=ANGLE_TOL_RAD)
         assert np.array_equal(f["inter"][i], r["inter"][j])
+
+
+def test_new_positions_counts_and_seed_compile_no_kernel(street):
+    """Dr.Jit compiles a kernel for each computation it has not seen; the tracer hands it
+    positions, sizes and seeds as data, so a call with other ends, other source and target
+    counts and another seed reuses the kernels of the first call (Dr.Jit's in-process kernel
+    history: every launch of the second call hits its kernel cache). Exact: a count."""
+    import drjit as dr
+
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False, rays_per_source=2000)
+    street.trace(STREET_UES[:2], STREET_BSS, fid)
+    shifted = STREET_UES[1:4] + np.array([0.37, -0.21, 0.0])
+    seed = street.seed
+    try:
+        street.seed = seed + 1
+        with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+            raw = street.trace(shifted, STREET_BSS[:2], fid)
+            hist = dr.kernel_history([dr.KernelType.JIT])
+    finally:
+        street.seed = seed
+    assert raw.valid.any()
+    assert hist, "the traced call launched no kernel"
+    compiled = [k["hash"] for k in hist if not k["cache_hit"]]
+    assert compiled == []

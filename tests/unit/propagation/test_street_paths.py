@@ -276,3 +276,19 @@ def test_hopeless_candidates_are_rejected_by_the_image_method(tmp_path, monkeypa
     assert tracer.last_num_edge_candidates > n_kept
     for f in kept.FIELDS:
         np.testing.assert_array_equal(getattr(kept, f), getattr(every, f))
+
+
+def test_aligned_copies_start_on_the_jit_alignment():
+    """Dr.Jit compiles its loads for the alignment of an aliased NumPy buffer: the copies
+    handed to it start on a JIT_ALIGNMENT boundary, with the values, shape and type asked."""
+    from veriloc_rt.propagation.street_paths import JIT_ALIGNMENT, aligned
+
+    rng = np.random.default_rng(0)
+    for n in (1, 3, 17, 1000):
+        x = rng.normal(size=(n, 3))[:, 1]              # a strided view
+        for dtype in (np.float32, np.uint32, np.float64):
+            y = aligned(x, dtype)
+            assert y.ctypes.data % JIT_ALIGNMENT == 0 and y.flags.c_contiguous
+            assert y.dtype == dtype and np.array_equal(y, x.astype(dtype))
+    z = aligned(np.arange(12.0).reshape(4, 3))
+    assert z.shape == (4, 3) and z.ctypes.data % JIT_ALIGNMENT == 0
