@@ -265,8 +265,10 @@ def findings_section(p: PresetFindings) -> str:
         cells = [_cell(p.detection[m].get(a, {}).get(n)) for a in attacks for m in p.models]
         L.append(f"| {n} | " + " | ".join(cells) + " |")
     flagged = {m: u for m, u in p.uninformative.items() if u}
-    L += ["", "Intervals: 95 % Wilson score interval over the attack points at the chosen "
-          "threshold (the threshold's own uncertainty, from the benign fixes, is not in it); "
+    L += ["", "Intervals: 95 %, the run's percentile bootstrap over its points (metrics.json "
+          "`pd_at_false_alarm_ci95`: benign and attack points resampled, so the threshold's "
+          "own uncertainty is in it); where the run holds none, the Wilson score interval over "
+          "the attack points at the chosen threshold. "
           "NP fusion is evaluated on the test third of the indices and given without one. "
           "A detector's ROC does not depend on its configured threshold, so an uninformative "
           "one (too few benign fixes accepted at that threshold) still has a Pd here."]
