@@ -3,21 +3,9 @@ unknown name refused with the one-line contract before any work."""
 
 from __future__ import annotations
 
-import contextlib
-import io
-
-from veriloc_rt.cli import main
 from veriloc_rt.config.presets import DEFAULT_PRESET, PRESETS
 
-
-def run_cli(*args) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main([str(a) for a in args])
-        except SystemExit as exc:   # argparse
-            code = exc.code
-    return code, out.getvalue(), err.getvalue()
+from .test_bad_inputs import run_cli   # veriloc-rt ARGS in this process: (code, out, err)
 
 
 def test_config_presets_lists_every_preset_and_marks_the_default():
