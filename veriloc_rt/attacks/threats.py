@@ -16,6 +16,8 @@ divide a grid built at absolute RE amplitude by ``signal.unit``).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import math
 from dataclasses import dataclass
 import numpy as np
@@ -54,7 +56,7 @@ class AttackPoint:
     ue_pos: np.ndarray
 
 
-class Threat:
+class Threat(ABC):
     """One attack: what its adversary transmits at an attack point.
 
     Made once per chain by :class:`~veriloc_rt.attacks.adversary.AdversarySignal` (``signal``:
@@ -80,6 +82,7 @@ class Threat:
     def __init__(self, signal):
         self.signal = signal
 
+    @abstractmethod
     def grid(self, at: AttackPoint, rng: np.random.Generator) -> np.ndarray:
         """[num_slots, 14, num_subcarriers] complex128, the transmitted grid (unit-RE
         normalisation); ``rng``: the adversary's own draws at this point."""

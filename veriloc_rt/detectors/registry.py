@@ -18,6 +18,8 @@ Each returns ``(valid, stat)``: its verdict (True: no anomaly) and its decision 
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 from dataclasses import dataclass
 from typing import Any
 
@@ -61,7 +63,7 @@ class PointInput:
     dt_s: float | None
 
 
-class Detector:
+class Detector(ABC):
     """One per-point detector: configured once per run, called per point.
 
     :meth:`from_config` makes it from the run's :class:`~veriloc_rt.config.Config` (default:
@@ -79,6 +81,7 @@ class Detector:
     def from_config(cls, cfg) -> "Detector":
         return cls(cfg)
 
+    @abstractmethod
     def __call__(self, x: PointInput) -> tuple[bool, float]:
         """``(valid, stat)`` at one point."""
         raise NotImplementedError

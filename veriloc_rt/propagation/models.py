@@ -13,6 +13,8 @@ adversary and adversary -> UE channel impulse responses
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 from pathlib import Path
 from typing import Callable
 
@@ -27,7 +29,7 @@ __all__ = ["PROPAGATION_REGISTRY", "PropagationModel", "RayTracing", "Stochastic
            "StochasticUMi"]
 
 
-class PropagationModel:
+class PropagationModel(ABC):
     """Every link of a run from its geometry.
 
     Class attribute ``traces``: the model ray-traces the scene (its materials are checked
@@ -38,6 +40,7 @@ class PropagationModel:
     name: str = ""
     traces: bool = False
 
+    @abstractmethod
     def __call__(self, geometry, cfg: PropagationConfig, seed: int, *,
                  progress: Callable[[int, int], None] | None = None,
                  cache_dir: str | Path | None = "default",

@@ -98,6 +98,17 @@ def _first_duplicate(p: np.ndarray) -> tuple[int, int] | None:
     return None
 
 
+def _site_distances(sites: np.ndarray, xy: np.ndarray, n: int) -> np.ndarray:
+    """[num_points, num_sites] horizontal distances, m, of each point to each site.
+
+    :raises InputError: if the file holds fewer than ``n`` sites
+    """
+    if len(sites) < n:
+        raise InputError("topology.num_trps", f"{n} TRPs per point, but the sites file holds "
+                         f"{len(sites)} sites")
+    return np.linalg.norm(np.asarray(xy)[:, None, :2] - sites[None, :, :2], axis=-1)
+
+
 def nearest_serving(sites: np.ndarray, xy: np.ndarray, n: int = SERVING
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The ``n`` nearest sites (horizontal distance, ties by file order) serve each point,
@@ -108,10 +119,7 @@ def nearest_serving(sites: np.ndarray, xy: np.ndarray, n: int = SERVING
         site index of each BS [num_bs] int64)
     :raises InputError: if the file holds fewer than ``n`` sites
     """
-    if len(sites) < n:
-        raise InputError("topology.num_trps", f"{n} TRPs per point, but the sites file holds "
-                         f"{len(sites)} sites")
-    d = np.linalg.norm(np.asarray(xy)[:, None, :2] - sites[None, :, :2], axis=-1)
+    d = _site_distances(sites, xy, n)
     near = np.argsort(d, axis=1, kind="stable")[:, :n]
     order: dict[int, int] = {}
     serving = np.empty_like(near)
@@ -135,10 +143,7 @@ def candidate_sites(sites: np.ndarray, xy: np.ndarray, n: int, radius: float
         site index of each BS [num_bs] int64)
     :raises InputError: if the file holds fewer than ``n`` sites
     """
-    if len(sites) < n:
-        raise InputError("topology.num_trps", f"{n} TRPs per point, but the sites file holds "
-                         f"{len(sites)} sites")
-    d = np.linalg.norm(np.asarray(xy)[:, None, :2] - sites[None, :, :2], axis=-1)
+    d = _site_distances(sites, xy, n)
     near = np.argsort(d, axis=1, kind="stable")
     keep = np.take_along_axis(d, near, axis=1) <= radius
     keep[:, :n] = True

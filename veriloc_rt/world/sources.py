@@ -22,6 +22,8 @@ The config sits below this package, so it checks only the form of a name;
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import logging
 from pathlib import Path
 
@@ -57,7 +59,7 @@ def osm_scene_xml(scfg, scene_dir: str | Path) -> Path:
 SCENE_SOURCE_REGISTRY: Registry[type["SceneSource"]] = Registry("scene source", "scene.source")
 
 
-class SceneSource:
+class SceneSource(ABC):
     """A run's scene from its config.
 
     Subclasses implement :meth:`load`; :meth:`materials` (the ITU materials Sionna RT will trace,
@@ -68,6 +70,7 @@ class SceneSource:
     #: set by the registry
     name: str = ""
 
+    @abstractmethod
     def load(self, cfg: Config, scene_dir: Path) -> UrbanCanyon | MeshScene:
         """The whole scene (before the crop).
 
