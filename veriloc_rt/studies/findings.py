@@ -21,6 +21,7 @@ compare -->`` and ``<!-- END veriloc-rt findings: compare -->``, which the gener
 from __future__ import annotations
 
 import hashlib
+import os
 import json
 import logging
 import re
@@ -76,8 +77,19 @@ def model_versions(models=("raytrace", "uma", "umi")) -> dict:
 
 def config_hash(cfg: Config) -> str:
     """sha256 (first 16 hex digits) of the resolved config (every field, as ``veriloc-rt
-    config show`` prints it): two configs that run the same hash the same."""
-    text = json.dumps(config_to_dict(cfg), sort_keys=True, separators=(",", ":"))
+    config show`` prints it), each file it names (a resolved absolute path: sites CSV, scene,
+    trajectory) replaced by its content's sha256, so the hash does not depend on where the
+    checkout is: two configs that run the same hash the same."""
+    def located(v):
+        if isinstance(v, dict):
+            return {k: located(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [located(x) for x in v]
+        if isinstance(v, str) and os.path.isabs(v) and os.path.isfile(v):
+            return "sha256:" + hashlib.sha256(Path(v).read_bytes()).hexdigest()
+        return v
+
+    text = json.dumps(located(config_to_dict(cfg)), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
