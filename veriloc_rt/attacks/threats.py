@@ -86,7 +86,6 @@ class Threat(ABC):
     def grid(self, at: AttackPoint, rng: np.random.Generator) -> np.ndarray:
         """[num_slots, 14, num_subcarriers] complex128, the transmitted grid (unit-RE
         normalisation); ``rng``: the adversary's own draws at this point."""
-        raise NotImplementedError
 
     @classmethod
     def rng(cls, seed: int, prs_mode: int, point: int) -> np.random.Generator:

@@ -84,7 +84,6 @@ class Detector(ABC):
     @abstractmethod
     def __call__(self, x: PointInput) -> tuple[bool, float]:
         """``(valid, stat)`` at one point."""
-        raise NotImplementedError
 
     def reset(self) -> None:
         """Forget the state of the previous scenario (stateless detectors: nothing)."""

@@ -56,7 +56,6 @@ class PropagationModel(ABC):
             are used (None: all); a model may compute them everywhere
         :param workers: processes the model may use
         """
-        raise NotImplementedError
 
 
 #: propagation models by name (``propagation.model``)

@@ -77,7 +77,6 @@ class SceneSource(ABC):
         :param scene_dir: the run's scene folder, where a source may write files it builds
         :raises InputError: one line naming the config field at fault
         """
-        raise NotImplementedError
 
     def materials(self, cfg: Config) -> list[tuple[str, str, str]]:
         """``(config field, ITU material, message)`` of each material the scene uses; the
