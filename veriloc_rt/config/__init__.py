@@ -118,6 +118,15 @@ class Config:
         self.run.check_trajectory_length(self.trajectory.num_points, "trajectory.num_points")
 
     @property
+    def tracking_measurement_noise(self) -> str:
+        """``detectors.tracking.measurement_noise`` resolved: 'auto' is 'fix_covariance' when
+        the fix is weighted (:attr:`weighted_fix`: a covariance per fix), else 'fixed'."""
+        m = self.detectors.tracking.measurement_noise
+        if m == "auto":
+            return "fix_covariance" if self.weighted_fix else "fixed"
+        return m
+
+    @property
     def weighted_fix(self) -> bool:
         """The DL fix is the weighted fit with a covariance (``receiver.fix_weighting``)."""
         w = self.receiver.fix_weighting

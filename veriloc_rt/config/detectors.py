@@ -66,11 +66,12 @@ class TrackingConfig:
                                   "(process noise)", lo=0.0, lo_open=True, hi=100.0)
     meas_std_m: float = param(5.0, "std of each position coordinate of a fix (R = std^2 I)",
                               lo=0.0, lo_open=True, hi=10_000.0)
-    measurement_noise: str = param("fixed", "R of each fix: 'fixed' (meas_std_m^2 I, the "
-                                   "paper's) or 'fix_covariance' (the weighted fit's "
+    measurement_noise: str = param("auto", "R of each fix: 'fixed' (meas_std_m^2 I, the "
+                                   "paper's), 'fix_covariance' (the weighted fit's "
                                    "covariance of that fix, receiver.fix_weighting; each "
-                                   "variance at least 0.01 m^2)",
-                                   choices=("fixed", "fix_covariance"))
+                                   "variance at least 0.01 m^2) or 'auto' (fix_covariance "
+                                   "when the fix is weighted, else fixed)",
+                                   choices=("auto", "fixed", "fix_covariance"))
     init_velocity_std_mps: float = param(10.0, "velocity std at track initialisation",
                                          lo=0.0, lo_open=True, hi=1000.0)
     gate_probability: float = param(0.85, "chi-square(2) probability of the NIS gate "

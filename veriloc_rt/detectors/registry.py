@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -181,7 +181,12 @@ class Tracking(Detector):
 
     @classmethod
     def from_config(cls, cfg) -> "Tracking":
-        return cls(cfg.detectors)
+        """The tracker of a run's config, ``measurement_noise`` 'auto' resolved
+        (:attr:`Config.tracking_measurement_noise`; built from a ``DetectorsConfig`` alone,
+        'auto' is 'fixed')."""
+        d = cfg.detectors
+        return cls(replace(d, tracking=replace(d.tracking,
+                                               measurement_noise=cfg.tracking_measurement_noise)))
 
     def reset(self) -> None:
         self.tracker.reset()

@@ -65,18 +65,16 @@ def format_roc_intervals(roc: dict) -> str:
     alpha = roc.get("false_alarm", (roc.get("fusion") or {}).get("false_alarm"))
     uninf = set(roc.get("uninformative") or ())
     lines = [f"detection at false alarm <= {100 * alpha:g} % and AUC, with 95 % intervals "
-             "(bootstrap; uninf.: no detection to show):"]
+             "(bootstrap; the threshold set for that false alarm on the benign points, so a "
+             "detector uninformative at its configured threshold, marked *, has a rate too):"]
     for s, per in (roc.get("attacks") or {}).items():
         cells = []
         for n, e in per.items():
-            if n in uninf:
-                cells.append(f"{n} uninf.")
-                continue
             pd, pci = e.get("pd_at_false_alarm"), e.get("pd_at_false_alarm_ci95")
             a, aci = e.get("auc"), e.get("auc_ci95")
             auc = "n/a" if a is None else f"{a:.2f}" + (f" [{aci[0]:.2f}-{aci[1]:.2f}]"
                                                         if aci else "")
-            cells.append(f"{n} {_cell(pd, pci)} % AUC {auc}")
+            cells.append(f"{n}{'*' if n in uninf else ''} {_cell(pd, pci)} % AUC {auc}")
         lines.append(f"  {s:10s} " + "; ".join(cells))
     return "\n".join(lines)
 

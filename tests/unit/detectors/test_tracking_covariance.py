@@ -57,3 +57,17 @@ def test_fix_covariance_needs_the_weighted_fit():
                             "receiver": {"fix_weighting": "snr"}})
     assert cfg.weighted_fix and cfg.trp_outputs
     assert not config_from_dict({}).trp_outputs
+
+
+def test_auto_takes_the_fix_covariance_exactly_when_the_fix_is_weighted():
+    from veriloc_rt.detectors.registry import Tracking
+    cases = [({}, "fixed"),                                            # 3 TRPs: unweighted fit
+             ({"topology": {"num_trps": 4}}, "fix_covariance"),        # auto weighting, > 3
+             ({"topology": {"num_trps": 9}, "receiver": {"fix_weighting": "equal"}}, "fixed"),
+             ({"receiver": {"fix_weighting": "snr"}}, "fix_covariance"),
+             ({"topology": {"num_trps": 9},
+               "detectors": {"tracking": {"measurement_noise": "fixed"}}}, "fixed")]
+    for data, want in cases:
+        cfg = config_from_dict(data)
+        assert cfg.tracking_measurement_noise == want, data
+        assert Tracking.from_config(cfg).cfg.tracking.measurement_noise == want, data

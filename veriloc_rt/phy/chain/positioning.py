@@ -148,7 +148,8 @@ class PositioningChain:
                                               ue_array.spacing_wavelengths, axis),
                                  receiver.aoa_snapshots)
         self.tags = TagStage(receiver.tag_slots, self.slots)
-        self.uplink = (UplinkStage(UplinkPositioner(nr, channel, receiver, uplink_noise), self.element_pos)
+        self.uplink = (UplinkStage(UplinkPositioner(nr, channel, receiver, uplink_noise), self.element_pos,
+                                   self.fix)
                        if receiver.uplink else None)
         #: seconds spent per stage over every call (a run reports them; reading is optional)
         self.stage_s = dict.fromkeys(STAGES, 0.0)

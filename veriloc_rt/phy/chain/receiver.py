@@ -423,19 +423,24 @@ class UplinkStage:
     """The UL fix of a point, the last one kept under its :class:`UplinkKey` and the generator's
     state (the adversary does not touch the uplink).
 
-    :param positioner: the uplink receiver and solver
+    :param positioner: the uplink receiver
     :param element_pos: [num_ant, 3] float64, m, the UE's array (the SRS leaves its centre)
+    :param fix: the solver of the UL fix: the DL's :class:`FixStage` (the same fit, weighting,
+        integrity test and exclusion on the BSs' TDOAs; with three TRPs and the unweighted fit
+        the same call as the positioner's own), None: the positioner's own
     """
 
-    def __init__(self, positioner: UplinkPositioner, element_pos: np.ndarray):
-        self.positioner, self.element_pos = positioner, element_pos
+    def __init__(self, positioner: UplinkPositioner, element_pos: np.ndarray,
+                 fix: FixStage | None = None):
+        self.positioner, self.element_pos, self.fix = positioner, element_pos, fix
         self._kept = KeptDraw()
 
     def __call__(self, bs_ue: CIR, point: int, bs_pos: np.ndarray, ue_height_m: float,
                  rng: np.random.Generator) -> UplinkResult:
         def compute():
             return self.positioner(Links.uplink_from_cir(bs_ue, point, self.element_pos), bs_pos,
-                                   ue_height_m, rng)
+                                   ue_height_m, rng,
+                                   solve=None if self.fix is None else self.fix.solve)
 
         if not self.positioner.noise.follows_call_rng:
             return compute()

@@ -87,11 +87,15 @@ class UplinkPositioner:
         return self.noise(y, self.noise_var, rng)
 
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
-                 rng: np.random.Generator) -> UplinkResult:
+                 rng: np.random.Generator, solve=None) -> UplinkResult:
         """Time the SRS at every BS and solve the UL position.
 
         :param uplinks: one single-antenna :class:`Links` per serving BS (reference first)
         :param bs_pos: [num_bs, 3] float64, m
+        :param solve: the fix from the TDOAs: ``solve(detected, toa_s, peak_snr_db, bs_pos,
+            ue_height_m) -> MultilaterationResult`` (the chain passes its DL fix's solver, so
+            the network's fit weighs, tests and excludes as the UE's does); None: the unweighted
+            :class:`Multilaterator` with BS 0 the reference and ``receiver.max_residual_m``
         """
         if len(uplinks) != len(bs_pos):
             raise ValueError(f"Arguments `uplinks` ({len(uplinks)}) and `bs_pos` ({len(bs_pos)}) "
@@ -116,6 +120,9 @@ class UplinkPositioner:
             det[j], snr[j] = est.detected, est.peak_snr_db
             toa[j] = t0 + est.toa_s if est.detected else np.nan
         tdoa = toa - toa[0]
-        solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.receiver.max_residual_m)
-        fix = solver(np.asarray(bs_pos, dtype=float), np.where(det, tdoa, np.nan), 0, det)
+        if solve is not None:
+            fix = solve(det, toa, snr, np.asarray(bs_pos, dtype=float), ue_height_m)
+        else:
+            solver = Multilaterator(ue_height_m=ue_height_m, max_residual_m=self.receiver.max_residual_m)
+            fix = solver(np.asarray(bs_pos, dtype=float), np.where(det, tdoa, np.nan), 0, det)
         return UplinkResult(det, toa, tdoa, snr, fix)
