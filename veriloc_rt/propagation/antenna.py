@@ -209,12 +209,23 @@ def apply_bs_antenna(prop, geometry, topology):
     bs_adv, _ = apply_sectors(prop.bs_adv, panel, bore)
     used = sec_ue[sec_ue >= 0]
     stats = {**prop.stats, "bs_antenna": {
+        "link_gain_db": _link_gain_percentiles(prop.bs_ue, bs_ue),
         "model": "tr38901", "sectors": int(topology.sectors),
         "elements": int(panel.num_elements),
         "spacing_wavelengths": float(panel.spacing_wavelengths),
         "tilt_deg": float(panel.tilt_deg), "peak_gain_dbi": round(panel.peak_gain_dbi(), 3),
         "bs_ue_links_per_sector": [int(np.sum(used == s)) for s in range(topology.sectors)]}}
     return dataclasses.replace(prop, bs_ue=bs_ue, bs_adv=bs_adv, stats=stats)
+
+
+def _link_gain_percentiles(before: CIR, after: CIR) -> dict:
+    """p5 / p50 / p95 over the links with a path of the antenna's power gain on the link,
+    10 lg(sum of path powers after / before), dB (None without such a link)."""
+    p0, p1 = before.path_power().sum(-1), after.path_power().sum(-1)
+    ok = before.has_path() & (p0 > 0)
+    g = 10.0 * np.log10(p1[ok] / p0[ok]) if ok.any() else np.zeros(0)
+    return {f"p{q}": (round(float(np.percentile(g, q)), 3) if g.size else None)
+            for q in (5, 50, 95)}
 
 
 def describe_bs_antenna(topology) -> str:

@@ -170,6 +170,9 @@ def test_default_config_leaves_the_links_bit_for_bit():
     np.testing.assert_array_equal(out.bs_ue.gains, out.bs_adv.gains)
     # no layout, no azimuths: Table 7.8-1's 30 / 150 / 270 deg; 0.4 rad = 22.9 deg -> the first
     assert out.stats["bs_antenna"]["bs_ue_links_per_sector"] == [1, 0, 0]
+    # the link's gain: |field|^2 towards (97.4 deg, 22.9 - 30 deg), stored to 0.001 dB
+    gain = 10 * math.log10(abs(_expected_field(1.7, math.degrees(0.4) - 30.0)) ** 2)
+    assert out.stats["bs_antenna"]["link_gain_db"]["p50"] == pytest.approx(gain, abs=5e-4)
 
 
 # -- both arms: the stochastic links carry departure angles, the run applies the panels -------
