@@ -8,18 +8,19 @@ cache keeps isotropic paths (a sector is never re-traced).
 
 The panel (``topology.bs_antenna`` "tr38901"):
 
-* element: TR 38.901 clause 7.3, Table 7.3-1 (the same text as TR 36.873 Table 7.1-1), power
-  pattern in dB of the element's local frame (zenith theta' and azimuth phi', degrees)::
+* element: TR 38.901 clause 7.3, Table 7.3-1, power pattern in dB in the element's local
+  frame (zenith theta' and azimuth phi', degrees)::
 
       A_V(theta') = -min(12 ((theta' - 90) / theta_3dB)^2, SLA_V)
       A_H(phi')   = -min(12 (phi' / phi_3dB)^2, A_max)
       A(theta', phi') = G_E,max - min(-(A_V + A_H), A_max)
 
   with theta_3dB = phi_3dB = 65 deg, SLA_V = A_max = 30 dB, G_E,max = 8 dBi; the field of the
-  element's (vertical) polarisation is sqrt(A) (clause 7.3-4, polarisation slant 0);
+  element's polarisation is sqrt(A) (eq. 7.3-4 with polarisation slant 0: theta-hat);
 * column: M elements stacked vertically at d_V wavelengths, fed with the electrical-tilt
-  weights of TR 36.873 clause 7.1.1 (the calibration panel TR 38.901 Table 7.8-1 refers to:
-  "10 coupled elements in elevation", one port), ``w_m = exp(-j 2 pi m d_V cos(theta_etilt))
+  weights of TR 36.873 clause 7.1.1 as recalled (not checked against the text; TR 38.901
+  Table 7.8-1's calibration panel is "10 coupled elements in elevation" on one port, as
+  QuaDRiGa's calibration scripts transcribe it), ``w_m = exp(-j 2 pi m d_V cos(theta_etilt))
   / sqrt(M)``; an element at height ``m d_V lambda`` above the column's centre radiates towards
   zenith theta with the phase ``exp(+j 2 pi m d_V cos theta)``, so the column's array factor is
 
@@ -27,13 +28,13 @@ The panel (``topology.bs_antenna`` "tr38901"):
 
   (m = -(M-1)/2 .. (M-1)/2: the column's centre is the site position the links were computed
   from, so AF is real), peak sqrt(M) (10 log10 M dB) at theta = theta_etilt. The panel's field
-  is ``sqrt(A(theta', phi')) AF(theta')``; its peak gain is G_E,max + 10 log10 M (18 dBi for
-  M = 10). The power-normalised weights keep the radiated power of an isotropic-element column;
-  with directive elements at d_V != 0.5 lambda the pattern's integral is not exactly 4 pi, as in
-  the standard's own model;
-* sectors: ``topology.sectors`` panels per site, boresights 120 deg apart, no mechanical tilt
-  (the local frame is the global one turned by the boresight azimuth, TR 38.901 clause 7.1.3
-  with bearing alpha = boresight, downtilt beta = 0, slant gamma = 0).
+  is ``sqrt(A(theta', phi')) AF(theta')``; on boresight along the tilt its gain is
+  G_E,max - 12 ((theta_etilt - 90) / 65)^2 + 10 log10 M (17.6 dBi for M = 10 at 102 deg). The
+  power-normalised weights conserve the radiated power exactly only for isotropic elements half
+  a wavelength apart; as in the standard's model, the product is not renormalised;
+* sectors: ``topology.sectors`` panels per site, boresights 360 / sectors deg apart, no
+  mechanical tilt (the local frame is the global one turned by the boresight azimuth,
+  TR 38.901 clause 7.1.3 with bearing alpha = boresight, downtilt beta = 0, slant gamma = 0).
 
 The three sectors of a site share its position, so a UE gains no geometry from hearing more
 than one: each link (point, site) is given the sector whose pattern delivers the most received
@@ -53,8 +54,8 @@ from .cir import CIR
 
 __all__ = ["ElementPattern", "SectorPanel", "element_pattern_db", "column_array_factor",
            "apply_sectors", "sector_boresights", "site_first_boresight", "panel_of",
-           "apply_bs_antenna", "describe_bs_antenna", "TR38901_ELEMENT", "TABLE_7_8_1_FIRST_BORESIGHT_DEG",
-           "HEX_CELL_DIRECTION_DEG"]
+           "apply_bs_antenna", "describe_bs_antenna", "TR38901_ELEMENT",
+           "TABLE_7_8_1_FIRST_BORESIGHT_DEG", "HEX_CELL_DIRECTION_DEG"]
 
 #: TR 38.901 Table 7.8-1 sector boresights 30, 150, 270 deg: the first (a sites CSV without
 #: azimuths)
