@@ -10,6 +10,7 @@ Each expectation is derived here from the formulas, not from the module:
 Tolerances: 1e-12 relative (the same closed forms evaluated in float64; only rounding differs).
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -266,3 +267,87 @@ def test_traced_departure_angles_point_along_the_line_of_sight(tmp_path):
             assert abs(cir.aod_zen[k, j, n] - zen) < 1e-4
             checked += 1
     assert checked > 0
+
+
+def test_traced_power_selection_ranks_the_candidates_through_the_panels(tmp_path, monkeypatch):
+    """'traced_power' chooses the strongest candidates after the panels: a fake traced model
+    gives each (point, site) one path of known power leaving at a site-dependent azimuth, and
+    the chosen TRPs must be the top ones by power x |field|^2, recomputed here."""
+    from veriloc_rt.config import config_from_dict
+    from veriloc_rt.sim import engine
+    from veriloc_rt.world.geometry import Geometry
+    from veriloc_rt.world.sites import candidate_sites
+    from veriloc_rt.world.trajectory import Trajectory
+
+    zen = math.radians(95.0)
+
+    def power(k, b):
+        return 1e-9 * (1.0 + (b * 7 + k * 3) % 5)
+
+    def azimuth(k, b):                       # degrees: off the 30/150/270 boresights by 0-57
+        return 30.0 + 19.0 * ((b + 2 * k) % 4)
+
+    class Fake:
+        def __call__(self, geometry, cfg, seed, *, progress=None, cache_dir="default",
+                     adversary_points=None, workers=1, ue_points=None):
+            P, T = geometry.serving.shape
+            k = np.arange(P)[:, None]
+            b = geometry.serving
+            az = np.radians(azimuth(k, b))[..., None]
+            c = CIR(delays=np.full((P, T, 1), 1e-6),
+                    gains=np.sqrt(power(k, b))[:, :, None, None].astype(complex),
+                    aoa_az=np.zeros((P, T, 1)), aoa_zen=np.zeros((P, T, 1)), aod_az=az,
+                    aod_zen=np.full((P, T, 1), zen), doppler=np.zeros((P, T, 1)),
+                    interactions=np.zeros((P, T, 1, 1), np.uint8),
+                    valid=np.ones((P, T, 1), bool), tx_index=b, tx_pos=np.zeros((P, T, 3)),
+                    rx_pos=np.zeros((P, 3)), los=np.zeros((P, T), bool),
+                    carrier_frequency=3.5e9)
+            adv = dataclasses.replace(c, delays=c.delays[:, :1], gains=c.gains[:, :1],
+                                      aoa_az=c.aoa_az[:, :1], aoa_zen=c.aoa_zen[:, :1],
+                                      aod_az=c.aod_az[:, :1], aod_zen=c.aod_zen[:, :1],
+                                      doppler=c.doppler[:, :1], valid=c.valid[:, :1],
+                                      interactions=c.interactions[:, :1],
+                                      tx_index=np.full((P, 1), -2), tx_pos=c.tx_pos[:, :1],
+                                      los=c.los[:, :1])
+            return Propagation(bs_ue=c, bs_adv=c, adv_ue=adv, stats={"links": P * T})
+
+    class Registry:
+        def get(self, name):
+            return Fake
+
+    xs = np.arange(5) * 80.0
+    sites = np.array([[x, y, 10.0] for x in xs for y in xs])
+    csv = tmp_path / "s.csv"
+    csv.write_text("x,y,z\n" + "".join(f"{x},{y},{z}\n" for x, y, z in sites))
+    cfg = config_from_dict({"topology": {"selection": "traced_power", "sites": str(csv),
+                                         "num_trps": 3, "candidate_radius_m": 130.0,
+                                         "bs_antenna": "tr38901"},
+                            "propagation": {"model": "raytrace"}, "run": {"scenarios": ["none"]}})
+    P = 10
+    pos = np.concatenate([np.random.default_rng(4).uniform(0, 320, (P, 2)), np.full((P, 1), 1.5)],
+                         axis=1)
+    ue = Trajectory(np.arange(P, dtype=float), pos, np.zeros((P, 3)), np.arange(P, dtype=float),
+                    pos)
+    bs, serving, cand, _ = candidate_sites(sites, pos[:, :2], 3, 130.0)
+    geo = Geometry(scene_xml=tmp_path / "x.xml", scene=None, full_canyon=None, layout=None,
+                   bs_pos=bs, serving=serving, ue=ue, adversary=ue, candidates=cand,
+                   bs_azimuth=np.full(len(bs), np.nan))
+    monkeypatch.setattr(engine, "PROPAGATION_REGISTRY", Registry())
+    chosen, prop = engine.traced_power_serving(cfg, geo)
+
+    def through_panel(k, b):                 # the best of the 30/150/270 deg sectors
+        f = max(abs(_expected_field(zen, (azimuth(k, b) - bo + 180) % 360 - 180)) ** 2
+                for bo in (30.0, 150.0, 270.0))
+        return power(k, b) * f
+
+    differs = False
+    for k in range(P):
+        valid = [int(c) for c in cand[k] if c >= 0]
+        expect = sorted(valid, key=lambda b: (-through_panel(k, b), valid.index(b)))[:3]
+        assert list(chosen.serving[k]) == expect
+        iso = sorted(valid, key=lambda b: (-power(k, b), valid.index(b)))[:3]
+        differs |= iso != expect
+    assert differs          # the panels changed the choice somewhere: the test can tell
+    got = prop.bs_ue.path_power().sum(-1)
+    want = [[through_panel(k, b) for b in chosen.serving[k]] for k in range(P)]
+    np.testing.assert_allclose(got, want, rtol=1e-9)
