@@ -314,7 +314,9 @@ METRICS_TOP_DOC = {
                    "`above_ds_threshold_share` (fractions, each with its Clopper-Pearson "
                    "`_ci95`), `weakest_used_hmac_margin_db` and `weakest_used_ds_margin_db` "
                    "(p5/p50/p95 over the points with a fix of the least margin among the TRPs "
-                   "the fix used) ([link budget](link-budget.md))",
+                   "the fix used), `bs_antenna` (the BS antennas the received powers "
+                   "include: `topology.bs_antenna`, with the panel's peak gain) "
+                   "([link budget](link-budget.md))",
     "roc": "the detection analysis (below): ROC, AUC and operating point per decision and "
            "attack, the uninformative flags, the fused decisions (absent without a `none` "
            "scenario and an attack scenario)",

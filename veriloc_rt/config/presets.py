@@ -24,9 +24,11 @@ from . import Config, load_config
 #: preset name -> one-line summary (``veriloc-rt config presets`` prints them)
 PRESETS = {
     "3gpp-umi-street": "TR 38.901 UMi - Street Canyon style: 23 street-level sites 10 m high "
-                       "(below the 15 m roofs, about 205 m apart), 6 TRPs, 38 dBm "
-                       "(TS 38.104 medium range), 10 MHz / 15 kHz, ray traced",
-    "3gpp-uma": "TR 38.901 UMa style: rooftop macro sites 25 m high, ISD 500 m, 9 TRPs, "
+                       "(below the 15 m roofs, about 205 m apart), 3 sectors of TR 38.901 "
+                       "panels, 6 TRPs, 38 dBm (TS 38.104 medium range), 10 MHz / 15 kHz, "
+                       "ray traced",
+    "3gpp-uma": "TR 38.901 UMa style: rooftop macro sites 25 m high, ISD 500 m, 3 sectors of "
+                "TR 38.901 panels (12 deg electrical downtilt), 9 TRPs, "
                 "46 dBm (49 dBm per 20 MHz scaled to 10 MHz), 10 MHz / 15 kHz, ray traced",
     "harsh-alley": "the built-in canyon: 5 m streets between 15 m buildings, 3 TRPs 25 m high "
                    "at ISD 500 m, 24 dBm (TS 38.104 local area) against a 48 dBm adversary, "

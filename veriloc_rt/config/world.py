@@ -256,7 +256,8 @@ class TopologyConfig:
     selection: str = param("auto", "which TRPs a point measures: 'power' (the num_trps strongest "
                            "by median received PRS power: every site transmits the same power "
                            "from isotropic antennas and TR 38.901's median path loss grows with "
-                           "the 2-D distance at fixed heights, so the num_trps nearest sites; "
+                           "the 2-D distance at fixed heights, so the num_trps nearest sites "
+                           "(also with bs_antenna 'tr38901': the choice ignores the panels); "
                            "which of them are heard is the receiver's hearability test, "
                            "receiver.hearability_db), 'cell' (the three BSs of the hexagonal "
                            "cell holding the point: the paper's serving set; num_trps 3 and the "
@@ -273,6 +274,29 @@ class TopologyConfig:
                                       "(and always its num_trps nearest); it bounds the traced "
                                       "links to the sites within the radius per point",
                                       lo=1.0, hi=20000.0)
+    bs_antenna: str = param("isotropic", "BS antennas: 'isotropic' (0 dBi in every direction, "
+                            "one per site: every propagation model's own links) or 'tr38901' "
+                            "(topology.sectors panels per site, each a vertical column of "
+                            "TR 38.901 Table 7.3-1 elements with electrical downtilt, applied "
+                            "to the links' departure angles after propagation; each link gets "
+                            "the site's strongest sector; docs/scenarios.md, 'BS antennas')",
+                            choices=("isotropic", "tr38901"))
+    sectors: int = param(3, "bs_antenna 'tr38901': sectors (panels) per site, boresights "
+                         "360/sectors deg apart, the first towards the centre of a cell the "
+                         "site serves (hexagonal layout), or the sites CSV's azimuth_deg, else "
+                         "30 deg (TR 38.901 Table 7.8-1: 30, 150, 270 deg)", choices=(1, 3))
+    bs_antenna_elements: int = param(10, "bs_antenna 'tr38901': elements M of the vertical "
+                                     "column (TR 38.901 Table 7.8-1 calibration: 10)",
+                                     lo=1, hi=64)
+    bs_antenna_spacing_wavelengths: float = param(0.5, "bs_antenna 'tr38901': vertical "
+                                                  "element spacing d_V, wavelengths (0.5 as "
+                                                  "the Table 7.8-1 calibration transcriptions "
+                                                  "give it; docs/scenarios.md)",
+                                                  lo=0.1, hi=2.0)
+    bs_antenna_tilt_deg: float = param(102.0, "bs_antenna 'tr38901': electrical downtilt as "
+                                       "the zenith angle of the column's beam, deg (90: the "
+                                       "horizon; TR 38.901 Table 7.8-1 UMa/UMi: 102, 12 deg "
+                                       "below it)", lo=45.0, hi=135.0)
 
     @property
     def uses_cell(self) -> bool:

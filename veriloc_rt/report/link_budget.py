@@ -126,13 +126,15 @@ def read_link_arrays(path) -> dict:
 
 
 def link_budget_block(links: dict, num_antennas: int, penalty_db: float,
-                      schemes=("hmac", "ds"), scenario: str = "none") -> dict:
+                      schemes=("hmac", "ds"), scenario: str = "none",
+                      bs_antenna: str | None = None) -> dict:
     """The ``link_budget`` block of metrics.json from one scenario's links
     (:func:`link_arrays` or :func:`read_link_arrays`): percentiles (p5 / p50 / p95) over the
     links of the received PRS power and the SNR per RE (per antenna), and over the points with
     a fix of the weakest used TRP's tag margin per scheme; the share of links heard (the
     receiver's hearability test), above each scheme's tag threshold, and whose tags verified,
-    each with its Clopper-Pearson ``_ci95``. Empty without links."""
+    each with its Clopper-Pearson ``_ci95``; ``bs_antenna`` (when given) names the BS
+    antennas the received powers include. Empty without links."""
     idx = np.asarray(links["index"])
     if not idx.size:
         return {}
@@ -143,6 +145,8 @@ def link_budget_block(links: dict, num_antennas: int, penalty_db: float,
                  "multipath_penalty_db": float(penalty_db),
                  "rx_power_dbm": _percentiles(np.asarray(links["rx_power_dbm"], dtype=float)),
                  "snr_re_db": _percentiles(snr)}
+    if bs_antenna is not None:
+        out["bs_antenna"] = bs_antenna
     out.update(_share("heard_share", np.asarray(links["heard"], dtype=bool)))
     out.update(_share("tag_verified_share", np.asarray(links["tag_verified"], dtype=bool)))
     for s in schemes:
@@ -175,4 +179,5 @@ def format_link_budget(block: dict) -> str:
     return (f"link budget ({block['scenario']}, {block['links']} links): rx PRS p50 "
             f"{p50(block['rx_power_dbm'])} dBm, SNR/RE p50 {p50(block['snr_re_db'])} dB per "
             f"antenna (x{block['rx_antennas']} combined); heard {pct('heard_share')}; {tags}; "
-            f"tags verified {pct('tag_verified_share')}")
+            f"tags verified {pct('tag_verified_share')}"
+            + (f"; BS antenna {block['bs_antenna']}" if block.get("bs_antenna") else ""))

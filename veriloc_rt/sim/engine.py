@@ -33,6 +33,7 @@ from ..config import Config
 from ..errors import InputError
 from ..fileio import atomic_output, atomic_write_text, json_text
 from ..inputs import read_text
+from ..propagation.antenna import apply_bs_antenna, describe_bs_antenna
 from ..propagation.models import PROPAGATION_REGISTRY
 from ..propagation.raytrace import Propagation
 from ..report import plots
@@ -89,14 +90,19 @@ def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | No
     run uses them, the attack window of an attack scenario: the adversary -> UE links are
     point-to-point, batch poorly, and were half the tracing time of the paper run when traced at
     every point. (UMa draws them everywhere: free, and the draws stay as they were.)
+
+    The models give isotropic BS antennas; ``topology.bs_antenna`` then applies the BS panels
+    to the links leaving a BS (:func:`~veriloc_rt.propagation.antenna.apply_bs_antenna`), the
+    same transform for every model.
     """
     model = PROPAGATION_REGISTRY.get(cfg.propagation.model)()
     attacks = any(s != "none" for s in cfg.run.scenarios)
     window = cfg.run.attack_points(geometry.num_points) & attacks
     stage = "ray tracing" if model.traces else "propagation"
     cb = (lambda d, n: progress(stage, d, n)) if progress else None
-    return model(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
+    prop = model(geometry, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
                  adversary_points=window, workers=workers)
+    return apply_bs_antenna(prop, geometry, cfg.topology)
 
 
 def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | None = None,
@@ -120,6 +126,8 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
     t0 = time.perf_counter()
     cand_prop = model(replace(geometry, serving=padded), cfg.propagation, cfg.seed, progress=cb,
                       cache_dir=cache_dir, adversary_points=np.zeros(P, bool), workers=workers)
+    # the BS antennas before the choice: a point measures the sites strongest through them
+    cand_prop = apply_bs_antenna(cand_prop, geometry, cfg.topology)
     power = cand_prop.bs_ue.path_power().sum(axis=-1)            # [P, C] linear
     serving, col = strongest_serving(cand, power, cfg.topology.num_trps)
     chosen = replace(geometry, serving=serving)
@@ -127,6 +135,7 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
     window = cfg.run.attack_points(P) & attacks
     adv_prop = model(chosen, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
                      adversary_points=window, workers=workers, ue_points=np.zeros(P, bool))
+    adv_prop = apply_bs_antenna(adv_prop, chosen, cfg.topology)
     bs_ue = cand_prop.bs_ue.take_slots(col, serving)
     # the two traces' counts summed (the keys a single trace reports), each trace's own too
     stats = {k: cand_prop.stats[k] + adv_prop.stats[k]
@@ -137,6 +146,8 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
                  candidates_with_path=[int(np.min(reached)), float(np.median(reached)),
                                        int(np.max(reached))],
                  candidate_trace=cand_prop.stats, adversary_trace=adv_prop.stats)
+    if "bs_antenna" in cand_prop.stats:   # its sector counts are over the candidate links
+        stats["bs_antenna"] = cand_prop.stats["bs_antenna"]
     log.info("traced-power selection: %d candidate links over %d points (%.1f per point), "
              "%d sites; candidates with a path per point: min %d, median %g, max %d",
              stats["candidate_links"], P, stats["candidate_links"] / max(P, 1),
@@ -331,7 +342,8 @@ def _link_budget(cfg: Config, rows: dict, out: Path | None) -> dict:
     links = read_link_arrays(path) if path is not None and path.exists() else \
         link_arrays(rows[scenario])
     return link_budget_block(links, cfg.propagation.ue_array.num_elements,
-                             multipath_penalty_db(cfg.propagation), scenario=scenario)
+                             multipath_penalty_db(cfg.propagation), scenario=scenario,
+                             bs_antenna=describe_bs_antenna(cfg.topology))
 
 
 def _saved_rows(out: Path, scenario: str, n: int) -> list:

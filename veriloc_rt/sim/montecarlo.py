@@ -182,7 +182,7 @@ def _aggregate_link_budget(per_realisation: list[dict], level: float) -> dict:
         return {}
     first = blocks[0]
     out: dict = {k: first[k] for k in ("scenario", "rx_antennas", "tag_threshold_db",
-                                       "multipath_penalty_db") if k in first}
+                                       "multipath_penalty_db", "bs_antenna") if k in first}
     out["links"] = int(sum(b.get("links", 0) for b in blocks))
     out["realisations"] = len(blocks)
     for k, v in first.items():

@@ -18,6 +18,13 @@ then differs is the multipath structure, not the mean loss. The offsets are the 
 ``propagation.stochastic_pathloss_offset_{los,nlos}_db`` of the twin run (its draws are
 unchanged: the same seed gives the same clusters and rays).
 
+Both arms get the config's BS antennas (``topology.bs_antenna``) by the same transform after
+propagation (:func:`~veriloc_rt.propagation.antenna.apply_bs_antenna`). With sector panels
+('tr38901') the links' "path loss" below is the coupling loss, path loss minus the BS antenna
+gain towards each path, in both arms (the match too), while the TR 38.901 table's path loss
+is of isotropic antennas: set the config's ``topology.bs_antenna`` to 'isotropic' to compare
+path loss with the table.
+
 It then reports, side by side:
 
 * channel statistics of the serving links, over all links and for LoS and NLoS links
@@ -51,6 +58,7 @@ from .diagnostics import BenignRun, benign_chain, finite_percentiles
 from .validate import traced_pathloss_db
 from ..report.propagation_summary import rms_delay_spread
 from ..propagation import tr38901
+from ..propagation.antenna import apply_bs_antenna
 from ..propagation.stochastic import stochastic_propagation
 from ..sim.engine import run
 from ..sim.run_folder import run_keys
@@ -279,7 +287,9 @@ def run_compare(cfg: Config, out_dir: str | Path, progress: Progress | None = No
                                        stochastic_pathloss_offset_nlos_db=0.0)
             twin["match_pathloss"] = bool(match_pathloss)
             if match_pathloss:
-                probe = stochastic_propagation(geometry, prop, cfg.seed).bs_ue
+                # with the BS antennas, as the traced links have them (like for like)
+                probe = apply_bs_antenna(stochastic_propagation(geometry, prop, cfg.seed),
+                                         geometry, cfg.topology).bs_ue
                 off = pathloss_offsets(traced_cir, probe)
                 twin["pathloss_offset_db"] = off
                 prop = dataclasses.replace(prop, stochastic_pathloss_offset_los_db=off["los"],
