@@ -39,6 +39,7 @@ if str(ROOT) not in sys.path:  # run as a script from a checkout without install
     sys.path.insert(0, str(ROOT))
 
 from veriloc_rt.sim import montecarlo  # noqa: E402
+from veriloc_rt.config.presets import DEFAULT_PRESET  # noqa: E402
 from veriloc_rt.studies import bench  # noqa: E402
 from veriloc_rt.report.tables import TABLES  # noqa: E402
 from veriloc_rt.config import Config, config_schema, config_to_dict  # noqa: E402
@@ -140,7 +141,7 @@ def configuration_md() -> str:
     out = [HEADER.format(script=SCRIPT), "# Configuration reference", "",
            "A config is one JSON file; every field is optional, so `{}` is the built-in default "
            "scenario (the preset `harsh-alley`; `veriloc-rt run` without a config runs the preset "
-           "`3gpp-uma`, [scenarios](scenarios.md)). Unknown keys are rejected. A bad value "
+           f"`{DEFAULT_PRESET}`, [scenarios](scenarios.md)). Unknown keys are rejected. A bad value "
            "stops the command before any work with one line, `error: <field>: <problem>`, and "
            "exit code 2. `veriloc-rt config show [CONFIG]` prints a config with every default "
            "filled in; `veriloc-rt config schema` prints the JSON schema this page is generated "

@@ -36,7 +36,7 @@ PRESETS = {
 }
 
 #: what ``veriloc-rt run`` runs without CONFIG
-DEFAULT_PRESET = "3gpp-uma"
+DEFAULT_PRESET = "3gpp-umi-street"
 
 
 def preset_names() -> tuple[str, ...]:
