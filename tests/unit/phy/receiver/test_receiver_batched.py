@@ -31,8 +31,9 @@ def _bits(a: np.ndarray) -> bytes:
 
 @pytest.fixture(scope="module")
 def scene():
-    """Three TRPs' comb-6 PRS (TS 38.211 7.4.1.7: the same symbols, offsets 0, 2, 4) through
-    different gains, plus noise, on a 4-antenna grid of 2 slots."""
+    """Three TRPs' comb-6 PRS (mapping of TS 38.211 7.4.1.7.3: the same 12 symbols, the
+    config's comb offsets 0, 1, 2) through different gains, plus noise, on a 4-antenna grid of
+    2 slots."""
     nr = NRConfig(slots_per_frame=2)
     tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), BS_IDS)
     slots = range(2)
@@ -48,6 +49,12 @@ def test_cross_spectra_of_several_replicas_are_each_replicas_own(scene):
     many = frequency_cross_spectra_many(y, reps, tx.ofdm, slots)
     occ = [tx.occupied(slots)[1][b] for b in range(3)]
     given = frequency_cross_spectra_many(y, reps, tx.ofdm, slots, occ)
+    # the premise of the shared pass: every TRP's groups read the same sets of blocks
+    block_sets = [sorted(tuple(bl) for bl, _, _ in cs.parts) for cs in many]
+    assert block_sets[0] == block_sets[1] == block_sets[2]
+    # ... each on other bins (its own comb offset in each symbol)
+    bins_of = [{tuple(bl): tuple(k) for bl, k, _ in cs.parts} for cs in many]
+    assert all(len({b[blk] for b in bins_of}) == 3 for blk in bins_of[0])
     for b, rep in enumerate(reps):
         one = frequency_cross_spectra(y, rep, tx.ofdm, slots)
         for cs in (many[b], given[b]):
