@@ -32,7 +32,7 @@ from ..channel import Links
 from ..nr.ofdm import OFDM
 from ..receiver.aoa import AoAEstimate, AoAEstimator
 from ..receiver.multilateration import MultilaterationResult, Multilaterator
-from ..receiver.sync import frequency_cross_spectra, noise_dof, noise_variance, time_cross_spectra
+from ..receiver.sync import frequency_cross_spectra_many, noise_estimates, time_cross_spectra
 from ..receiver.tag_verifier import TagVerifier, estimate_tag_channel
 from ..receiver.toa import CrossSpectra, ToAEstimate, ToAEstimator
 from ..receiver.uplink import UplinkPositioner, UplinkResult
@@ -99,23 +99,26 @@ class TimingStage:
         if reuse is not None:
             nv, dof = reuse[2], reuse[3]
         else:
-            nv = noise_variance(grid, self.busy_symbols)
+            nv, dof = noise_estimates(grid, self.busy_symbols)
             nv = nv if np.isfinite(nv) else self.noise_var
-            dof = noise_dof(grid, self.busy_symbols)
+        occ = list(occupied) if occupied is not None else [None] * len(replicas)
+        fresh = [j for j, rep in enumerate(replicas)
+                 if reuse is None or received.reaches(rep != 0 if occ[j] is None else occ[j])]
+        if self.channel.per_re_receiver:   # the TRPs' cross-spectra from one read of the grid
+            made = dict(zip(fresh, frequency_cross_spectra_many(
+                grid, [replicas[j] for j in fresh], self.ofdm, self.slots, [occ[j] for j in fresh])))
+        else:
+            made = {j: time_cross_spectra(received.iq, replicas[j], self.ofdm, self.slots,
+                                          self.channel.timing_guard_s, self.search_window_s)
+                    for j in fresh}
         ests, spectra = [], []
-        for j, rep in enumerate(replicas):
-            occ = occupied[j] if occupied is not None else None
-            if reuse is not None and not received.reaches(rep != 0 if occ is None else occ):
+        for j in range(len(replicas)):
+            if j not in made:
                 ests.append(reuse[4][j])
                 spectra.append(reuse[5][j])
                 continue
-            if self.channel.per_re_receiver:
-                cs = frequency_cross_spectra(grid, rep, self.ofdm, self.slots, occ)
-            else:
-                cs = time_cross_spectra(received.iq, rep, self.ofdm, self.slots,
-                                        self.channel.timing_guard_s, self.search_window_s)
-            ests.append(self.toa(cs, nv, dof))
-            spectra.append(cs)
+            ests.append(self.toa(made[j], nv, dof))
+            spectra.append(made[j])
         if received.plain:
             self._benign = (grid, tuple(replicas), nv, dof, tuple(ests), tuple(spectra))
         det = np.array([e.detected for e in ests])
@@ -403,9 +406,7 @@ class TagStage:
                 ok = verifier(combined, bs, frame, int(self.slots[s]))
             else:  # same estimate as the verifier's own, from the cached replica
                 h_t, nv = estimate_tag_channel(combined, lay, bs, replica[s], verifier.smoothing)
-                full = np.zeros_like(combined)
-                full[lay.symbols[:, None], lay.tag_subcarriers(bs)] = h_t
-                ok = verifier(combined, bs, frame, int(self.slots[s]), channel=full, noise_var=nv)
+                ok = verifier(combined, bs, frame, int(self.slots[s]), noise_var=nv, tag_channel=h_t)
             if not ok:
                 return False
         return True

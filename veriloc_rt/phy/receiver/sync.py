@@ -15,6 +15,8 @@ uses (the PRS occupies at most 12 of 14 symbols, the SRS a few).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import scipy.fft as sfft
 
@@ -23,7 +25,8 @@ from ..channel import (as_slice, kept, kept_by_id, occupancy_groups, subcarrier_
 from ..nr.ofdm import OFDM
 from .toa import CrossSpectra, spatial_dof
 
-__all__ = ["frequency_cross_spectra", "time_cross_spectra", "noise_variance", "block_index"]
+__all__ = ["frequency_cross_spectra", "frequency_cross_spectra_many", "time_cross_spectra",
+           "noise_variance", "noise_estimates", "noise_dof", "block_index"]
 
 
 def block_index(replica: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,6 +114,15 @@ def _replica_terms(replica: np.ndarray, occupied: np.ndarray | None) -> tuple:
     return kept_by_id(_TERMS, (replica, occupied), make, max_entries=_TERMS_MAX)
 
 
+def _check_grid(rx_grid: np.ndarray, replica: np.ndarray, occupied: np.ndarray | None) -> None:
+    if rx_grid.ndim != 4 or rx_grid.shape[1:] != replica.shape:
+        raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
+                         "must be [A, S, 14, K] and [S, 14, K]")
+    if occupied is not None and occupied.shape != replica.shape:
+        raise ValueError(f"Argument `occupied` {occupied.shape} must have the shape of `replica` "
+                         f"{replica.shape}")
+
+
 def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots,
                             occupied: np.ndarray | None = None) -> CrossSpectra:
     """Per-RE cross-spectra of a received grid with a replica grid, computed on the replica's
@@ -121,33 +133,61 @@ def frequency_cross_spectra(rx_grid: np.ndarray, replica: np.ndarray, ofdm: OFDM
     :param occupied: [num_slots, 14, num_subcarriers] bool, ``replica != 0`` when the caller
         knows it (:meth:`~veriloc_rt.phy.transmitter.PRSTransmitter.occupied`), else None
     """
+    return frequency_cross_spectra_many(rx_grid, [replica], ofdm, slots,
+                                        None if occupied is None else [occupied])[0]
+
+
+def frequency_cross_spectra_many(rx_grid: np.ndarray, replicas: Sequence[np.ndarray], ofdm: OFDM,
+                                 slots, occupied: Sequence[np.ndarray | None] | None = None
+                                 ) -> list[CrossSpectra]:
+    """:func:`frequency_cross_spectra` of each of several replicas on one received grid (the
+    serving TRPs' PRS), the same values, the groups of blocks (slot, symbol) that the replicas
+    share taken one after the other: the TRPs of a comb-N PRS occupy the same symbols with
+    different comb offsets, and each gather reads most of its symbols' cache lines for 1/N of
+    their values, which the next TRP's gather of the same symbols then finds in the cache.
+
+    :param replicas: per replica [S, 14, K] complex
+    :param occupied: per replica ``replica != 0`` or None (see :func:`frequency_cross_spectra`)
+    """
     rx_grid = np.asarray(rx_grid)
-    if rx_grid.ndim != 4 or rx_grid.shape[1:] != replica.shape:
-        raise ValueError(f"Arguments `rx_grid` {rx_grid.shape} and `replica` {replica.shape} "
-                         "must be [A, S, 14, K] and [S, 14, K]")
-    if occupied is not None and occupied.shape != replica.shape:
-        raise ValueError(f"Argument `occupied` {occupied.shape} must have the shape of `replica` "
-                         f"{replica.shape}")
-    s_idx, l_idx, groups, dense, ref_power = _replica_terms(replica, occupied)
-    if groups is None:
-        parts, spectra = None, np.multiply(rx_grid[:, s_idx, l_idx, :], dense, order="C")   # [A, B, K]
-    else:   # only the replica's REs: S = Y X* is zero elsewhere
-        spectra = None
-        parts = []
-        for b, k, sb, lb, ix, cx in groups:
+    occupied = [None] * len(replicas) if occupied is None else list(occupied)
+    if len(occupied) != len(replicas):
+        raise ValueError(f"Arguments `replicas` ({len(replicas)}) and `occupied` ({len(occupied)}) "
+                         "must have one entry per replica")
+    for rep, occ in zip(replicas, occupied):
+        _check_grid(rx_grid, rep, occ)
+    terms = [_replica_terms(rep, occ) for rep, occ in zip(replicas, occupied)]
+    # the groups of every replica by the blocks they read, each block set's groups one after
+    # the other: the grid's rows they share are read from the cache after the first
+    by_rows: dict = {}
+    for r, t in enumerate(terms):
+        for g, grp in enumerate(t[2] or ()):
+            by_rows.setdefault((grp[2].tobytes(), grp[3].tobytes()), []).append((r, g))
+    products: dict = {}
+    for members in by_rows.values():
+        for r, g in members:
+            _, _, sb, lb, ix, cx = terms[r][2][g]
             if isinstance(ix, slice):   # (the grid may be a strided view: no reshape, which
                 y = rx_grid[:, sb, lb, ix]   # would copy it whole)
             else:
                 y = rx_grid[:, sb[:, None], lb[:, None], ix[None, :]]
             # C order [A, B_g, K_g]: the gather leaves the blocks outermost, and the products
             # over the antennas' rows (spatial_dof, CrossSpectra.at_delay) then copy it whole
-            parts.append((b, k, np.multiply(y, cx, order="C")))
-        parts = tuple(parts)
-    return CrossSpectra(spectra=spectra, freqs=subcarrier_frequencies(ofdm),
-                        bin_spacing_hz=ofdm.subcarrier_spacing_hz,
-                        block_times=_block_times(ofdm, slots, s_idx, l_idx),
-                        ref_power=ref_power,
-                        band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz, parts=parts)
+            products[r, g] = np.multiply(y, cx, order="C")
+    freqs = subcarrier_frequencies(ofdm)
+    band = ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz
+    out = []
+    for r, (s_idx, l_idx, groups, dense, ref_power) in enumerate(terms):
+        if groups is None:
+            parts, spectra = None, np.multiply(rx_grid[:, s_idx, l_idx, :], dense, order="C")   # [A, B, K]
+        else:   # only the replica's REs: S = Y X* is zero elsewhere
+            spectra = None
+            parts = tuple((grp[0], grp[1], products[r, g]) for g, grp in enumerate(groups))
+        out.append(CrossSpectra(spectra=spectra, freqs=freqs,
+                                bin_spacing_hz=ofdm.subcarrier_spacing_hz,
+                                block_times=_block_times(ofdm, slots, s_idx, l_idx),
+                                ref_power=ref_power, band_hz=band, parts=parts))
+    return out
 
 
 def time_cross_spectra(rx_iq: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots, guard_s: float,
@@ -191,6 +231,29 @@ def time_cross_spectra(rx_iq: np.ndarray, replica: np.ndarray, ofdm: OFDM, slots
                         band_hz=ofdm.num_subcarriers * ofdm.subcarrier_spacing_hz)
 
 
+def _free_symbols(rx_grid: np.ndarray, busy_symbols) -> list[int]:
+    busy = {int(b) for b in busy_symbols}
+    return [l for l in range(rx_grid.shape[-2]) if l not in busy]
+
+
+def _mean_power(x: np.ndarray) -> float:
+    """``np.mean(np.abs(x) ** 2)`` (the same value), the square taken in place."""
+    p = np.abs(x)
+    np.square(p, out=p)
+    return float(np.mean(p))
+
+
+def noise_estimates(rx_grid: np.ndarray, busy_symbols) -> tuple[float, float]:
+    """``(noise_variance(rx_grid, busy_symbols), noise_dof(rx_grid, busy_symbols))``, the same
+    values from one gather of the free symbols."""
+    a = rx_grid.shape[0]
+    free = _free_symbols(rx_grid, busy_symbols)
+    if not free:
+        return float("nan"), 2.0 * a
+    x = rx_grid[..., free, :]
+    return _mean_power(x), spatial_dof(x.reshape(a, -1))
+
+
 def noise_variance(rx_grid: np.ndarray, busy_symbols) -> float:
     """Mean |Y|^2 over the symbols no serving signal uses: per-RE noise variance.
 
@@ -198,10 +261,10 @@ def noise_variance(rx_grid: np.ndarray, busy_symbols) -> float:
     :param busy_symbols: symbol indices (0..13) carrying signals
     :returns: float (NaN when every symbol is busy)
     """
-    free = [l for l in range(rx_grid.shape[-2]) if l not in set(int(b) for b in busy_symbols)]
+    free = _free_symbols(rx_grid, busy_symbols)
     if not free:
         return float("nan")
-    return float(np.mean(np.abs(rx_grid[..., free, :]) ** 2))
+    return _mean_power(rx_grid[..., free, :])
 
 
 def noise_dof(rx_grid: np.ndarray, busy_symbols) -> float:
@@ -216,7 +279,7 @@ def noise_dof(rx_grid: np.ndarray, busy_symbols) -> float:
     :returns: float in [2, 2 num_ant] (2 num_ant when every symbol is busy)
     """
     a = rx_grid.shape[0]
-    free = [l for l in range(rx_grid.shape[-2]) if l not in set(int(b) for b in busy_symbols)]
+    free = _free_symbols(rx_grid, busy_symbols)
     if not free:
         return 2.0 * a
     return spatial_dof(rx_grid[..., free, :].reshape(a, -1))

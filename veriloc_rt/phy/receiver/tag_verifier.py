@@ -17,12 +17,57 @@ import numpy as np
 
 from ...config.nr import NRConfig
 from ...config.security import SecurityConfig
+from ..channel import kept
 from ..nr.grid import ReLayout
 from ..nr.prs import SYMBOLS_PER_SLOT
 from ..security.keys import BSKeys
 from ..security.tag_modem import TagModem
 from ..security.tags import check_tag, tag_message
 from ..transmitter import prs_replica, serving_setup
+
+
+#: :func:`_pilot_terms` by (layout, BS): a chain's layout and BSs are the same at every call
+_PILOTS: dict = {}
+
+
+@dataclass(frozen=True, eq=False)
+class _Pilots:
+    """What :func:`estimate_tag_channel` derives from the layout alone (read-only arrays).
+
+    sym : [L, 1] int64, the PRS symbols; kp, kt : [L, n] int64, the BS's PRS and tag
+    subcarriers; flat_k : [L n] int64, kp flattened; both : [N_sc - 1] bool, subcarrier pairs
+    (k, k + 1) both carrying a pilot; xq, xp : [L n] int64, the tag subcarriers (clamped to
+    their symbol's pilots) and the pilots, each symbol set apart on one axis
+    """
+
+    sym: np.ndarray
+    kp: np.ndarray
+    kt: np.ndarray
+    flat_k: np.ndarray
+    both: np.ndarray
+    xq: np.ndarray
+    xp: np.ndarray
+
+
+def _pilot_terms(layout: ReLayout, bs: int) -> _Pilots:
+    def make():
+        kp = layout.prs_subcarriers(bs)
+        kt = layout.tag_subcarriers(bs)
+        n_sc, flat_k = layout.num_subcarriers, kp.ravel()
+        count = np.bincount(flat_k, minlength=n_sc)
+        both = (count[1:] > 0) & (count[:-1] > 0)
+        # every symbol's interpolation in one call: the symbols' subcarriers set apart on one
+        # axis (integers, so the differences and slopes are the per-symbol ones), the tag
+        # subcarriers clamped to their symbol's pilots (np.interp holds the end values beyond)
+        off = (2 * n_sc * np.arange(kp.shape[0]))[:, None]
+        xq = (np.clip(kt, kp[:, :1], kp[:, -1:]) + off).ravel()
+        xp = (kp + off).ravel()
+        arrays = (layout.symbols[:, None], kp, kt, flat_k, both, xq, xp)
+        for a in arrays:
+            a.flags.writeable = False
+        return _Pilots(*arrays)
+
+    return kept(_PILOTS, (layout, int(bs)), make)
 
 
 def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.ndarray,
@@ -38,19 +83,17 @@ def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.
     :return: h : [num_symbols, res_per_symbol] complex128 on the tag REs (tag order);
         noise_var : float, per RE
     """
-    sym = layout.symbols[:, None]
-    kp = layout.prs_subcarriers(bs)
-    kt = layout.tag_subcarriers(bs)
+    pil = _pilot_terms(layout, bs)
+    sym, kp, kt = pil.sym, pil.kp, pil.kt
     h_ls = rx[sym, kp] * np.conj(replica[sym, kp])  # [L, n]
     # phase step per subcarrier from all symbols' pilots placed on one axis (staggered comb)
     # summed per subcarrier in the pilots' order (bincount adds as np.add.at does)
-    n_sc, flat_k, flat_h = layout.num_subcarriers, kp.ravel(), h_ls.ravel()
-    full = np.empty(n_sc, dtype=np.complex128)
-    full.real = np.bincount(flat_k, weights=flat_h.real, minlength=n_sc)
-    full.imag = np.bincount(flat_k, weights=flat_h.imag, minlength=n_sc)
-    count = np.bincount(flat_k, minlength=n_sc)
-    both = (count[1:] > 0) & (count[:-1] > 0)
+    n_sc, flat_k, flat_h = layout.num_subcarriers, pil.flat_k, h_ls.ravel()
+    both = pil.both
     if np.any(both):
+        full = np.empty(n_sc, dtype=np.complex128)
+        full.real = np.bincount(flat_k, weights=flat_h.real, minlength=n_sc)
+        full.imag = np.bincount(flat_k, weights=flat_h.imag, minlength=n_sc)
         step = np.angle(np.sum(full[1:][both] * np.conj(full[:-1][both])))
     else:  # comb covers only some subcarriers: use the within-symbol pilot spacing
         step = np.angle(np.sum(h_ls[:, 1:] * np.conj(h_ls[:, :-1]))) / layout.comb
@@ -65,12 +108,7 @@ def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.
                   + 1j * uniform_filter1d(flat.imag, w, axis=1, mode="nearest"))
     else:
         flat_s = flat
-    # every symbol's interpolation in one call: the symbols' subcarriers set apart on one axis
-    # (integers, so the differences and slopes are the per-symbol ones), the tag subcarriers
-    # clamped to their symbol's pilots (np.interp holds the end values beyond them)
-    off = (2 * n_sc * np.arange(kp.shape[0]))[:, None]
-    xq = (np.clip(kt, kp[:, :1], kp[:, -1:]) + off).ravel()
-    xp = (kp + off).ravel()
+    xq, xp = pil.xq, pil.xp
     h = (np.interp(xq, xp, flat_s.real.ravel())
          + 1j * np.interp(xq, xp, flat_s.imag.ravel())).reshape(kt.shape)
     h *= np.exp(1j * step * kt)
@@ -114,12 +152,16 @@ class TagVerifier:
                               security.tag_fill, security.ldpc_iterations, security.ldpc_method)
 
     def check(self, rx_slot: np.ndarray, bs: int, frame: int, slot: int,
-              channel: np.ndarray | None = None, noise_var: float | None = None) -> TagCheck:
+              channel: np.ndarray | None = None, noise_var: float | None = None, *,
+              tag_channel: np.ndarray | None = None) -> TagCheck:
         """Decode and verify BS ``bs``'s tag in one received slot.
 
         :param rx_slot: [14, num_subcarriers] complex, received grid of slot ``slot``
         :param channel: [14, num_subcarriers] complex per-RE channel estimate; None: from the PRS
         :param noise_var: noise variance per RE; None: estimated from the PRS REs
+        :param tag_channel: [num_symbols, res_per_symbol] complex, the channel on the BS's tag
+            REs alone (tag order, as :func:`estimate_tag_channel` gives it), in place of
+            ``channel`` (its values there: the same check); needs ``noise_var``
         """
         rx_slot = np.asarray(rx_slot)
         if rx_slot.shape != (SYMBOLS_PER_SLOT, self.layout.num_subcarriers):
@@ -127,10 +169,16 @@ class TagVerifier:
                              f"not {rx_slot.shape}")
         setup = self.setups[bs]
         keys = self.keys[setup.bs_id]
-        sym = self.layout.symbols[:, None]
-        kt = self.layout.tag_subcarriers(bs)
+        pil = _pilot_terms(self.layout, bs)
+        sym, kt = pil.sym, pil.kt
         nv_est = noise_var
-        if channel is None:
+        if tag_channel is not None:
+            if channel is not None or noise_var is None:
+                raise ValueError("Argument `tag_channel` needs `noise_var` and excludes `channel`")
+            h = np.asarray(tag_channel)
+            if h.shape != kt.shape:
+                raise ValueError(f"Argument `tag_channel` must have shape {kt.shape}, not {h.shape}")
+        elif channel is None:
             key = keys.aes_key if setup.prs.encrypted else None
             replica = prs_replica(self.layout, bs, setup, frame, [slot], key)[0]
             h, nv = estimate_tag_channel(rx_slot, self.layout, bs, replica, self.smoothing)
@@ -145,6 +193,8 @@ class TagVerifier:
         return TagCheck(decoded, valid)
 
     def __call__(self, rx_slot: np.ndarray, bs: int, frame: int, slot: int,
-                 channel: np.ndarray | None = None, noise_var: float | None = None) -> bool:
+                 channel: np.ndarray | None = None, noise_var: float | None = None, *,
+                 tag_channel: np.ndarray | None = None) -> bool:
         """True iff BS ``bs``'s tag in this slot verifies (see :meth:`check`)."""
-        return self.check(rx_slot, bs, frame, slot, channel, noise_var).valid
+        return self.check(rx_slot, bs, frame, slot, channel, noise_var,
+                          tag_channel=tag_channel).valid
