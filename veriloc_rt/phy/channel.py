@@ -567,6 +567,30 @@ def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_ax
     return n
 
 
+#: the flat indices of read masks, by the mask's memory (read-only masks only)
+_READ_INDEX: dict = {}
+
+
+def _read_index(read: np.ndarray, s: int, a: int, rest: tuple) -> np.ndarray:
+    """Flat indices (C order) of the REs of ``read[:s]`` in a grid [s, a, *rest] laid out slot,
+    antenna, symbol, subcarrier: kept for a read-only mask (a chain's kept one: the same memory
+    at every call), computed again for a writeable one. An integer scatter is about three times
+    faster than the boolean one of the same REs."""
+    def make():
+        mask = np.broadcast_to(np.asarray(read, dtype=bool)[:s, None], (s, a) + rest)
+        idx = np.flatnonzero(mask)
+        idx.flags.writeable = False
+        return idx
+
+    owner = read if not isinstance(read, np.ndarray) or read.base is None else read.base
+    if (not isinstance(read, np.ndarray) or read.flags.writeable
+            or not isinstance(owner, np.ndarray) or owner.flags.writeable):
+        return make()
+    return kept_by_id(_READ_INDEX, (owner,), make,
+                      key=(read.__array_interface__["data"][0], read.shape, read.strides,
+                           read.dtype.str, s, a, rest), max_entries=8)
+
+
 def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
                        rng: np.random.Generator, single: bool = False) -> np.ndarray:
     """Circular complex Gaussian noise CN(0, variance) on the REs ``read`` of a grid, 0 elsewhere.
@@ -583,7 +607,8 @@ def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
     :returns: [A, S, 14, K] complex128
     """
     a, s = shape[0], shape[1]
-    mask = np.broadcast_to(np.asarray(read, dtype=bool)[:s, None], (s, a) + tuple(shape[2:]))
+    idx = _read_index(read, s, a, tuple(shape[2:]))
     out = np.zeros((s, a) + tuple(shape[2:]), dtype=np.complex128)
-    out[mask] = standard_normals(rng, int(np.count_nonzero(mask)), np.sqrt(variance / 2.0), single)
+    # the flat indices of the mask's REs in C order: the order a boolean mask fills them in
+    out.reshape(-1)[idx] = standard_normals(rng, idx.size, np.sqrt(variance / 2.0), single)
     return np.moveaxis(out, 0, 1)

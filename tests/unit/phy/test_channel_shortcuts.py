@@ -190,3 +190,22 @@ def test_the_ue_noise_follows_the_noise32_switch(monkeypatch):
         assert reference("noise32") is not single
         ch = DownlinkChannel(ChannelConfig(), ofdm, range(2), 1.0, 0, 1, src, 1.0)
         assert ch.single_noise is single
+
+
+@pytest.mark.parametrize("single", [False, True])
+def test_grid_noise_on_a_kept_mask_equals_the_boolean_scatter(single):
+    """draw_grid_noise_on scatters by flat indices (kept for a read-only mask): the same bits as
+    a boolean scatter of the same draws (second method, written out here), for a writeable
+    mask, a read-only one (twice: the kept indices) and a read-only view of its first slots."""
+    shape = (3, 4, 14, 36)
+    read = np.random.default_rng(6).uniform(size=(5, 14, 36)) < 0.3
+    frozen = read.copy()
+    frozen.flags.writeable = False
+    scale = np.sqrt(1.5 / 2.0)
+    mask = np.broadcast_to(read[:4, None], (4, 3, 14, 36))
+    want = np.zeros((4, 3, 14, 36), dtype=np.complex128)
+    want[mask] = standard_normals(np.random.default_rng(9), int(mask.sum()), scale, single)
+    want = np.moveaxis(want, 0, 1)
+    for r in (read, frozen, frozen, frozen[:4]):
+        got = draw_grid_noise_on(shape, r, 1.5, np.random.default_rng(9), single)
+        assert got.tobytes() == np.ascontiguousarray(want).tobytes()
