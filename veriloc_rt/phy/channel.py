@@ -232,8 +232,8 @@ def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: f
     sub-cluster share theirs) share the factor exp(-j 2 pi f_k (tau - t0)), so
     H = sum_tau exp(-j 2 pi f_k (tau - t0)) sum_{p: tau_p = tau} g_ap exp(j 2 pi f_D,p t):
     the same sum (each path's factors are the same numbers), added in another order, which
-    changes the last bits only (:func:`grouped_frequency_response`). Without it, or when no two
-    valid paths of a link share a delay (ray-traced links: nothing to group), path by path (the
+    changes the last bits only (:func:`grouped_frequency_response`). Without it, or when no link
+    has two valid paths at one delay (ray-traced links: nothing to group), path by path (the
     reference, to the bit).
 
     :param freqs: [K] float64, Hz; times: [T] float64, s (absolute)
