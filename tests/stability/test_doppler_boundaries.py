@@ -75,11 +75,11 @@ def _cir(doppler_hz, amp):
 @pytest.fixture(scope="module")
 def chain():
     # the realisation the boundaries below were measured on (one seed, at the edge of
-    # detection): the reference noise path. The shortcut 'noise' draws other numbers from the
-    # same distributions (docs/equivalence.md), another realisation of the same test; the
-    # variable is read when the chain is built.
+    # detection): the reference noise path. The shortcuts 'noise' and 'noise32' draw other
+    # numbers from the same distributions (docs/equivalence.md), another realisation of the
+    # same test; the variable is read when the chain is built.
     kept = os.environ.get(ENV)
-    os.environ[ENV] = "noise"
+    os.environ[ENV] = "noise,noise32"
     try:
         return PositioningChain(NRConfig(), SecurityConfig(tag_scheme="none"), ChannelConfig(),
                                 ReceiverConfig(uplink=False), ArrayConfig(), FC, None)

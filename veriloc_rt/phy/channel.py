@@ -37,12 +37,14 @@ import scipy.fft as sfft
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
 from .nr.ofdm import OFDM
+from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
-           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "occupancy_groups",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "delay_groups",
+           "grouped_frequency_response", "occupancy_groups",
            "group_index", "apply_frequency", "apply_time",
-           "add_noise", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
+           "add_noise", "standard_normals", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
 
 def thermal_noise_variance(sample_rate_hz: float, noise_figure_db: float) -> float:
@@ -221,17 +223,73 @@ def subcarrier_frequencies(ofdm: OFDM) -> np.ndarray:
     return (np.arange(ofdm.num_subcarriers) - ofdm.num_subcarriers // 2) * ofdm.subcarrier_spacing_hz
 
 
-def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: float) -> np.ndarray:
+def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: float,
+                       grouped: bool = False) -> np.ndarray:
     """H[link, a, t, k] = sum_p g_ap exp(-j 2 pi f_k (tau_p - t0)) exp(j 2 pi f_D,p t).
+
+    With ``grouped`` (the shortcut ``delays`` of :mod:`veriloc_rt.phy.shortcuts`) the sum runs
+    over each link's distinct delays: paths of one delay (the rays of a TR 38.901 cluster or
+    sub-cluster share theirs) share the factor exp(-j 2 pi f_k (tau - t0)), so
+    H = sum_tau exp(-j 2 pi f_k (tau - t0)) sum_{p: tau_p = tau} g_ap exp(j 2 pi f_D,p t):
+    the same sum (each path's factors are the same numbers), added in another order, which
+    changes the last bits only (:func:`grouped_frequency_response`). Without it, or when no link
+    has two valid paths at one delay (ray-traced links: nothing to group), path by path (the
+    reference, to the bit).
 
     :param freqs: [K] float64, Hz; times: [T] float64, s (absolute)
     :returns: [num_links, num_ant, T, K] complex128
     """
+    if grouped:
+        groups = [delay_groups(links.delays[li], links.valid[li]) for li in range(links.num_links)]
+        if any(taus.size < paths.size for taus, paths, _ in groups):
+            return grouped_frequency_response(links, freqs, times, t0, groups)
     rel = np.where(links.valid, links.delays - t0, 0.0)
     e_f = np.exp(-2j * np.pi * rel[:, :, None] * freqs[None, None, :])          # [L, P, K]
     e_t = np.exp(2j * np.pi * links.doppler[:, :, None] * times[None, None, :])  # [L, P, T]
     gd = links.gains[:, :, None, :] * np.swapaxes(e_t, 1, 2)[:, None]           # [L, A, T, P]
     return gd @ e_f[:, None]                                                     # [L, A, T, K]
+
+
+def delay_groups(delays: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One link's valid paths grouped by their delay (equal floats: the rays of a TR 38.901
+    cluster or sub-cluster).
+
+    :param delays, valid: [P] float64, bool
+    :returns: (distinct delays [U] float64 increasing, the valid paths ordered by delay [V] int64,
+        where each delay's run of paths starts in that order [U] int64)
+    """
+    paths = np.flatnonzero(valid)
+    d = delays[paths]
+    order = np.argsort(d, kind="stable")
+    paths, d = paths[order], d[order]
+    starts = np.flatnonzero(np.concatenate([[True], d[1:] != d[:-1]])) if d.size else np.zeros(0, np.int64)
+    return d[starts], paths, starts
+
+
+def grouped_frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: float,
+                               groups: list | None = None) -> np.ndarray:
+    """:func:`frequency_response` summed over each link's distinct delays
+    (:func:`delay_groups`): G[a, t, u] = sum_{p: tau_p = tau_u} g_ap exp(j 2 pi f_D,p t), then
+    H = G @ exp(-j 2 pi (tau_u - t0) f_k). The product costs A T U K instead of A T P K
+    (TR 38.901 UMa: U ~ 20-30 distinct delays for P ~ 400 rays); each path's two exponentials
+    are the reference's numbers.
+
+    :param freqs: [K] float64, Hz; times: [T] float64, s (absolute)
+    :param groups: each link's :func:`delay_groups` when the caller has them
+    :returns: [num_links, num_ant, T, K] complex128
+    """
+    out = np.zeros((links.num_links, links.num_ant, times.size, freqs.size), dtype=np.complex128)
+    for li in range(links.num_links):
+        taus, paths, starts = (delay_groups(links.delays[li], links.valid[li]) if groups is None
+                               else groups[li])
+        if paths.size == 0:
+            continue
+        e_t = np.exp(2j * np.pi * links.doppler[li, paths][:, None] * times[None, :])   # [V, T]
+        gd = links.gains[li][:, None, paths] * e_t.T[None]                              # [A, T, V]
+        g = np.add.reduceat(gd, starts, axis=-1) if starts.size < paths.size else gd    # [A, T, U]
+        e_f = np.exp(-2j * np.pi * (taus - t0)[:, None] * freqs[None, :])               # [U, K]
+        np.matmul(g, e_f, out=out[li])
+    return out
 
 
 def occupancy_groups(occ: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
@@ -284,7 +342,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
 
     H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
     with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
-    H_l X_l = 0.
+    H_l X_l = 0; summed over each link's distinct delays (:func:`grouped_frequency_response`)
+    unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call).
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
@@ -304,11 +363,12 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     out = None   # made by the first link: a dense one's product is it (no zeros to add to)
     touched = np.zeros((t.size, k_n), dtype=bool)   # REs of out some link has added to
     flat_t = t.ravel()
+    grouped = not reference("delays")
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
         x = grids[li].reshape(t.size, k_n)
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
                     links.valid[li:li + 1])
-        response = _LinkResponses(one, t0)
+        response = _LinkResponses(one, t0, grouped)
         # a dense grid (a jammer's noise) gains nothing from groups
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
@@ -345,20 +405,21 @@ RESPONSES_MAX = 16
 
 
 class _LinkResponses:
-    """The frequency responses of one link (:func:`frequency_response`) on the REs asked for,
-    times a transmitter's RE amplitude, kept by the link's paths, t0, the times, the frequencies
-    and the amplitude (the same numbers give the same response): the chains of a point
+    """The frequency responses of one link (:func:`frequency_response`, summed over its distinct
+    delays when ``grouped``) on the REs asked for, times a transmitter's RE amplitude, kept by
+    the link's paths, t0, the summation, the times, the frequencies and the amplitude (the same
+    numbers give the same response): the chains of a point
     (standard, DS-tagged and encrypted PRS, on the same REs) and the adversary's scenarios apply
     the same links to the same REs, and compute each response once. A kept response is
     read-only."""
 
-    def __init__(self, one: Links, t0: float):
+    def __init__(self, one: Links, t0: float, grouped: bool = False):
         store = getattr(_RESPONSES, "links", None)
         if store is None:
             store = _RESPONSES.links = {}
         key = (one.delays.tobytes(), one.gains.tobytes(), one.doppler.tobytes(),
-               one.valid.tobytes(), float(t0))
-        self.one, self.t0 = one, float(t0)
+               one.valid.tobytes(), float(t0), bool(grouped))
+        self.one, self.t0, self.grouped = one, float(t0), bool(grouped)
         self.kept = store.get(key)
         if self.kept is None:
             if len(store) >= RESPONSES_MAX:
@@ -371,7 +432,8 @@ class _LinkResponses:
         key = (times.tobytes(), freqs.tobytes(), float(scale))
         h = self.kept.get(key)
         if h is None:
-            h = self.kept[key] = np.multiply(frequency_response(self.one, freqs, times, self.t0)[0],
+            h = self.kept[key] = np.multiply(frequency_response(self.one, freqs, times, self.t0,
+                                                                self.grouped)[0],
                                              scale)
             h.flags.writeable = False
         return h
@@ -451,35 +513,86 @@ def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, samp
     return out if out.shape[1] == num_out else np.pad(out, ((0, 0), (0, num_out - out.shape[1])))
 
 
-def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator, major_axis: int = 0) -> np.ndarray:
+def add_noise(x: np.ndarray, variance: float, rng: np.random.Generator, major_axis: int = 0,
+              single: bool = False) -> np.ndarray:
     """x + circular complex Gaussian noise of the given variance (a new array).
 
     :param major_axis: the axis the draws run along outermost: the noise of the leading entries
         of that axis does not depend on its length (a received grid [A, S, 14, K] with axis 1:
         the first slots' noise is the same whether the grid has them alone or every slot)
+    :param single: the normals drawn in single precision (:func:`standard_normals`)
     """
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
     if variance <= 0:
         return np.array(x, dtype=np.complex128)
-    n = draw_noise(x.shape, variance, rng, major_axis)
+    n = draw_noise(x.shape, variance, rng, major_axis, single)
     n += x
     return n
 
 
-def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_axis: int = 0) -> np.ndarray:
+def standard_normals(rng: np.random.Generator, count: int, scale: float,
+                     single: bool = False) -> np.ndarray:
+    """``count`` circular complex normals of variance ``2 scale^2`` (real and imaginary parts
+    i.i.d. N(0, scale^2)): complex128 [count].
+
+    :param single: the N(0, 1) draws in single precision (``Generator.standard_normal`` with
+        ``dtype=float32``: NumPy's float32 ziggurat, other numbers from the same distribution
+        to 24 bits, about a third cheaper to draw; the shortcut ``noise32`` of
+        :mod:`veriloc_rt.phy.shortcuts`), scaled in float64; else float64 draws scaled in
+        place (the reference)
+    """
+    if not single:
+        n = rng.standard_normal((count, 2)).view(np.complex128)[:, 0]
+        n *= scale
+        return n
+    z = rng.standard_normal((count, 2), dtype=np.float32)
+    n = np.empty(count, dtype=np.complex128)
+    np.multiply(z, scale, out=n.view(np.float64).reshape(count, 2), dtype=np.float64)
+    return n
+
+
+def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_axis: int = 0,
+               single: bool = False) -> np.ndarray:
     """Circular complex Gaussian noise CN(0, variance) of ``shape``, drawn as :func:`add_noise`
     draws it (the noise :func:`add_noise` adds, without the signal): complex128, ``major_axis``
-    outermost in the draws."""
+    outermost in the draws; ``single``: single-precision normals (:func:`standard_normals`)."""
     order = (shape[major_axis],) + tuple(np.delete(shape, major_axis))
+    if single:
+        n = standard_normals(rng, int(np.prod(order)), np.sqrt(variance / 2.0), True).reshape(order)
+        return np.moveaxis(n, 0, major_axis)
     n = rng.standard_normal(order + (2,)).view(np.complex128)[..., 0]
     n = np.moveaxis(n, 0, major_axis)
     n *= np.sqrt(variance / 2.0)
     return n
 
 
+#: the flat indices of read masks, by the mask's memory (read-only masks only)
+_READ_INDEX: dict = {}
+
+
+def _read_index(read: np.ndarray, s: int, a: int, rest: tuple) -> np.ndarray:
+    """Flat indices (C order) of the REs of ``read[:s]`` in a grid [s, a, *rest] laid out slot,
+    antenna, symbol, subcarrier: kept for a read-only mask (a chain's kept one: the same memory
+    at every call), computed again for a writeable one. An integer scatter is about three times
+    faster than the boolean one of the same REs."""
+    def make():
+        mask = np.broadcast_to(np.asarray(read, dtype=bool)[:s, None], (s, a) + rest)
+        idx = np.flatnonzero(mask)
+        idx.flags.writeable = False
+        return idx
+
+    owner = read if not isinstance(read, np.ndarray) or read.base is None else read.base
+    if (not isinstance(read, np.ndarray) or read.flags.writeable
+            or not isinstance(owner, np.ndarray) or owner.flags.writeable):
+        return make()
+    return kept_by_id(_READ_INDEX, (owner,), make,
+                      key=(read.__array_interface__["data"][0], read.shape, read.strides,
+                           read.dtype.str, s, a, rest), max_entries=8)
+
+
 def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
-                       rng: np.random.Generator) -> np.ndarray:
+                       rng: np.random.Generator, single: bool = False) -> np.ndarray:
     """Circular complex Gaussian noise CN(0, variance) on the REs ``read`` of a grid, 0 elsewhere.
 
     The draws run as :func:`draw_noise`'s with ``major_axis`` 1 (slot, then antenna, symbol,
@@ -490,12 +603,12 @@ def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
 
     :param shape: (A, S, 14, K), the grid's
     :param read: [S', 14, K] bool with S' >= S (its first S slots count)
+    :param single: single-precision normals (:func:`standard_normals`)
     :returns: [A, S, 14, K] complex128
     """
     a, s = shape[0], shape[1]
-    mask = np.broadcast_to(np.asarray(read, dtype=bool)[:s, None], (s, a) + tuple(shape[2:]))
+    idx = _read_index(read, s, a, tuple(shape[2:]))
     out = np.zeros((s, a) + tuple(shape[2:]), dtype=np.complex128)
-    n = rng.standard_normal((int(np.count_nonzero(mask)), 2)).view(np.complex128)[:, 0]
-    n *= np.sqrt(variance / 2.0)
-    out[mask] = n
+    # the flat indices of the mask's REs in C order: the order a boolean mask fills them in
+    out.reshape(-1)[idx] = standard_normals(rng, idx.size, np.sqrt(variance / 2.0), single)
     return np.moveaxis(out, 0, 1)

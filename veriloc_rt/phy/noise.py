@@ -52,11 +52,14 @@ class NoiseSource(ABC):
         """
 
     def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                    read: np.ndarray | None) -> np.ndarray:
+                    read: np.ndarray | None, single: bool = False) -> np.ndarray:
         """As the call, told which REs of a grid the receiver reads: a source may leave the
-        others without noise (this one gives every RE its noise).
+        others without noise (this one gives every RE its noise), and may draw its normals in
+        single precision (this one does not).
 
         :param read: grids only: [S', 14, K] bool (S' >= S), the REs read (None: every RE)
+        :param single: single-precision normals allowed (the shortcut ``noise32`` of
+            :mod:`veriloc_rt.phy.shortcuts`: :func:`~veriloc_rt.phy.channel.standard_normals`)
         """
         return self(x, variance, rng)
 
@@ -72,7 +75,8 @@ class WhiteNoise(NoiseSource):
     slots outermost (:func:`~veriloc_rt.phy.channel.add_noise` with ``major_axis`` 1). Given the
     REs the receiver reads (:meth:`add_on_read`), a grid gets noise on those alone
     (:func:`~veriloc_rt.phy.channel.draw_grid_noise_on`, the same order of draws): what the
-    receiver sees has the same distribution, for fewer draws. A subclass that overrides the call
+    receiver sees has the same distribution, for fewer draws; told ``single``, from
+    single-precision normals (the same distribution, cheaper draws). A subclass that overrides the call
     (to record or change the noise) gets every call instead, with every RE's noise."""
 
     follows_call_rng = True
@@ -81,12 +85,16 @@ class WhiteNoise(NoiseSource):
         return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
 
     def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                    read: np.ndarray | None) -> np.ndarray:
-        if read is None or x.ndim != 4 or variance <= 0 or _overrides_call(self, WhiteNoise):
+                    read: np.ndarray | None, single: bool = False) -> np.ndarray:
+        if x.ndim != 4:
+            read = None
+        if (read is None and not single) or variance <= 0 or _overrides_call(self, WhiteNoise):
             return self(x, variance, rng)
         if not isinstance(rng, np.random.Generator):
             raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
-        n = draw_grid_noise_on(x.shape, read, variance, rng)
+        if read is None:
+            return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0, single=True)
+        n = draw_grid_noise_on(x.shape, read, variance, rng, single)
         n += x
         return n
 
@@ -110,23 +118,25 @@ class KeptWhiteNoise(WhiteNoise):
         return self.add_on_read(x, variance, rng, None)
 
     def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                    read: np.ndarray | None) -> np.ndarray:
+                    read: np.ndarray | None, single: bool = False) -> np.ndarray:
         if variance <= 0 or not isinstance(rng, np.random.Generator):
             return WhiteNoise.__call__(self, x, variance, rng)   # a copy, or the type error
         if _overrides_call(self, KeptWhiteNoise):
             return self(x, variance, rng)
         if x.ndim != 4:
             read = None
+        single = bool(single)
 
         def draw():
-            n = (draw_noise(x.shape, variance, rng, major_axis=1 if x.ndim == 4 else 0)
-                 if read is None else draw_grid_noise_on(x.shape, read, variance, rng))
+            n = (draw_noise(x.shape, variance, rng, 1 if x.ndim == 4 else 0, single)
+                 if read is None else draw_grid_noise_on(x.shape, read, variance, rng, single))
             n.flags.writeable = False
             return n
 
-        # the REs drawn are part of the key (their bytes: a mask compares by value)
+        # the REs drawn and the precision are part of the key (a mask's bytes: it compares by
+        # value)
         mask = None if read is None else np.asarray(read, dtype=bool)[:x.shape[1]].tobytes()
-        return self._kept((x.shape, variance, mask), rng, draw) + x
+        return self._kept((x.shape, variance, mask, single), rng, draw) + x
 
 
 class GridNoise(NoiseSource):

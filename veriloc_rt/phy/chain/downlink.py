@@ -130,6 +130,9 @@ class DownlinkChannel:
         free symbols); read_slots: indices of the frame's slots whose every RE it reads (the tag
         checks'); with both given, frequency domain, the noise is drawn only on these and on
         the PRS replicas' REs (the shortcut ``noise`` of :mod:`veriloc_rt.phy.shortcuts`)
+
+    The noise's normals are drawn in single precision (the shortcut ``noise32``) unless
+    ``VERILOC_RT_REFERENCE`` names it when the channel is built.
     """
 
     def __init__(self, channel: ChannelConfig, ofdm: OFDM, slots, bs_power_factor: float,
@@ -144,6 +147,8 @@ class DownlinkChannel:
             sym[list(read_symbols)] = True
             self._read_whole = (sym, tuple(int(s) for s in read_slots))
         self._read_kept: tuple = (None, None)   # (replica_occupied, its read mask)
+        #: the UE's noise from single-precision normals (the shortcut ``noise32``)
+        self.single_noise = not reference("noise32")
         self.bs_power_factor = float(bs_power_factor)
         self.buffer_samples, self.decimation = int(buffer_samples), int(decimation)
         self.noise, self.noise_var = noise, float(noise_var)
@@ -194,7 +199,8 @@ class DownlinkChannel:
             else:
                 x = apply_time(dl.links, frame.waveform, dl.amplitudes, self.ofdm.sample_rate_hz, t0,
                                self.buffer_samples, self.decimation)
-            x = self.noise.add_on_read(x, self.noise_var, rng, self.read_mask(frame))
+            x = self.noise.add_on_read(x, self.noise_var, rng, self.read_mask(frame),
+                                      self.single_noise)
             x.flags.writeable = False
             return x
 

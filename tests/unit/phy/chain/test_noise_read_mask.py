@@ -63,8 +63,8 @@ def _results(cfg_dict, tmp_path, fill):
     noise holding ``fill`` instead of 0."""
     real = noise_mod.draw_grid_noise_on
 
-    def poisoned(shape, read, variance, rng):
-        n = real(shape, read, variance, rng)
+    def poisoned(shape, read, variance, rng, single=False):
+        n = real(shape, read, variance, rng, single)
         n[:, ~np.asarray(read, bool)[:shape[1]]] = fill * np.sqrt(variance)
         return n
 
