@@ -27,6 +27,35 @@ from veriloc_rt.world.scene.external import MeshScene
 from veriloc_rt.world.streets import scene_streets
 
 
+def pick_sites(graph, spacing: float, along: float | None = None) -> np.ndarray:
+    """Street-level sites of a street graph (``nodes`` [n, 2], ``edges`` [m, 2], ``polylines``):
+    its junctions (three or more edges), nearest the origin first, then, with ``along``, points
+    every ``along`` metres along each polyline (its ends excluded: they are nodes), nearest the
+    origin first; each kept when no site already kept lies closer than ``spacing``.
+
+    :returns: [num_sites, 2] float64, m, in the order kept
+    """
+    degree = np.bincount(np.asarray(graph.edges).ravel(), minlength=len(graph.nodes))
+    cand = np.asarray(graph.nodes)[degree >= 3]
+    cand = cand[np.argsort(np.linalg.norm(cand, axis=1))]
+    if along:
+        pts = []
+        for line in graph.polylines:
+            seg = np.diff(line, axis=0)
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(seg, axis=1))])
+            at = np.arange(along, s[-1], along)
+            pts.append(np.stack([np.interp(at, s, line[:, 0]), np.interp(at, s, line[:, 1])],
+                                axis=1))
+        extra = np.concatenate(pts) if pts else np.zeros((0, 2))
+        extra = extra[np.argsort(np.linalg.norm(extra, axis=1), kind="stable")]
+        cand = np.concatenate([cand, extra])
+    picked: list[np.ndarray] = []
+    for p in cand:
+        if all(np.linalg.norm(p - q) >= spacing for q in picked):
+            picked.append(p)
+    return np.array(picked).reshape(-1, 2)
+
+
 def main(argv: list[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("config")
@@ -39,6 +68,9 @@ def main(argv: list[str]) -> int:
                     help="half-side of the square searched (default: the config's "
                          "trajectory.region_m + 2 x spacing)")
     args = ap.parse_args(argv)
+    if args.along is not None and not args.along > 0:
+        print("error: --along: a step > 0 m is needed", file=sys.stderr)
+        return 2
     cfg = load_config(args.config)
     if cfg.scene.is_canyon:
         print("error: scene.source: a mesh scene is needed (the canyon has its own grid)",
@@ -47,30 +79,10 @@ def main(argv: list[str]) -> int:
     region = args.region or cfg.trajectory.region_m + 2 * args.spacing
     scene = MeshScene.from_xml(cfg.scene.xml_path)
     graph = scene_streets(scene, region, cfg.trajectory.ue_height_m)
-    degree = np.bincount(graph.edges.ravel(), minlength=len(graph.nodes))
-    cand = graph.nodes[degree >= 3]
-    cand = cand[np.argsort(np.linalg.norm(cand, axis=1))]
-    if args.along:
-        if not args.along > 0:
-            print("error: --along: a step > 0 m is needed", file=sys.stderr)
-            return 2
-        pts = []
-        for line in graph.polylines:
-            seg = np.diff(line, axis=0)
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(seg, axis=1))])
-            at = np.arange(args.along, s[-1], args.along)   # the ends are nodes
-            pts.append(np.stack([np.interp(at, s, line[:, 0]), np.interp(at, s, line[:, 1])],
-                                axis=1))
-        along = np.concatenate(pts) if pts else np.zeros((0, 2))
-        along = along[np.argsort(np.linalg.norm(along, axis=1), kind="stable")]
-        cand = np.concatenate([cand, along])
-    picked: list[np.ndarray] = []
-    for p in cand:
-        if all(np.linalg.norm(p - q) >= args.spacing for q in picked):
-            picked.append(p)
+    picked = pick_sites(graph, args.spacing, args.along)
     lines = ["x,y,z"] + [f"{p[0]:.1f},{p[1]:.1f},{args.height:g}" for p in picked]
     Path(args.out).write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.out}: {len(picked)} street-level sites (of {len(cand)} junctions"
+    print(f"wrote {args.out}: {len(picked)} street-level sites (junctions"
           + (f" and points every {args.along:g} m along the streets" if args.along else "")
           + f" within {region:g} m, at least {args.spacing:g} m apart, {args.height:g} m high)")
     return 0
