@@ -703,9 +703,38 @@ def save_figure(fig, path: str | Path, **kw) -> Path:
     return path
 
 
+def serving_mask(num_bs: int, serving) -> np.ndarray:
+    """[num_bs] bool: the BSs some point measures (ids in ``serving``, any shape; negative
+    ids, padding, are ignored)."""
+    ids = np.asarray(serving, dtype=np.int64).ravel()
+    mask = np.zeros(int(num_bs), bool)
+    mask[ids[(ids >= 0) & (ids < num_bs)]] = True
+    return mask
+
+
+#: legend labels of the BS markers: measured by some point, or a candidate site no point chose
+SERVING_LABEL, UNUSED_LABEL = "serving BSs", "candidate sites never chosen"
+
+
+def draw_bs(ax, bs: np.ndarray, serving: np.ndarray | None = None, label: str = "BSs") -> None:
+    """BS markers on ``ax``: with ``serving`` ([num_bs] bool) the BSs some point measures as
+    filled red triangles (:data:`SERVING_LABEL`, with their count) and the others as hollow
+    gray ones (:data:`UNUSED_LABEL`); without it every BS alike, as ``label``."""
+    bs = np.asarray(bs)[:, :2]
+    if serving is None:
+        ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label=label)
+        return
+    serving = np.asarray(serving, bool)
+    ax.plot(bs[serving, 0], bs[serving, 1], "^", color="tab:red", mec="k", ms=11,
+            label=f"{SERVING_LABEL} ({int(serving.sum())})")
+    if not serving.all():
+        ax.plot(bs[~serving, 0], bs[~serving, 1], "^", color="none", mec="0.35", ms=9,
+                label=f"{UNUSED_LABEL} ({int((~serving).sum())})")
+
+
 def plot_trajectory_map(rows: dict, bs_pos, path: str | Path | None = None, adversary_xy=None,
                         title: str | None = None, margin_m: float = 50.0, buildings=None,
-                        ax=None):
+                        ax=None, serving=None):
     """Top view: the buildings (light gray, under everything), true path, estimates coloured
     by outcome, BSs (triangles), adversary (orange).
 
@@ -720,6 +749,8 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path | None = None, adve
     :param ax: a matplotlib ``Axes`` to draw on (``path`` unused); the Figure is returned.
         Without ``ax`` and ``path`` a new Figure is returned; with ``path`` the map is saved
         there and the path returned
+    :param serving: [num_bs] bool, the BSs some point measures (:func:`serving_mask`): drawn
+        apart from the candidate sites no point chose (:func:`draw_bs`); None: all alike
     """
     xt, yt, xe, ye, outcome = _columns(rows, ("x_true", "y_true", "x_est", "y_est", "outcome"))
     bs = _xy(bs_pos, "bs_pos")
@@ -730,7 +761,8 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path | None = None, adve
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo = (pts.min(axis=0) if len(pts) else np.zeros(2)) - margin_m
     hi = (pts.max(axis=0) if len(pts) else np.zeros(2)) + margin_m
-    draw = lambda ax: _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings)  # noqa: E731
+    draw = lambda ax: _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings,  # noqa: E731
+                                serving)
     if ax is not None or path is None:
         fig, ax = new_axes(ax, figsize=(8.0, 8.0))
         draw(ax)
@@ -745,7 +777,7 @@ def plot_trajectory_map(rows: dict, bs_pos, path: str | Path | None = None, adve
     return path
 
 
-def _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings) -> None:
+def _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings, serving=None) -> None:
     """The layers of :func:`plot_trajectory_map` on ``ax``."""
     has_fix = np.isfinite(est).all(axis=1)
     inside = has_fix & np.all((est >= lo) & (est <= hi), axis=1)
@@ -766,7 +798,7 @@ def _draw_map(ax, true, est, outcome, bs, adv, lo, hi, buildings) -> None:
         ax.plot([], [], "X", color="w", mec="k", ms=7, label=f"beyond view, at edge ({n_out})")
     if len(adv):
         ax.plot(adv[:, 0], adv[:, 1], ".", color="tab:orange", ms=3, label="adversary")
-    ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", mec="k", ms=11, label="BSs")
+    draw_bs(ax, bs, serving)
     pad = 0.02 * (hi - lo).max()  # keeps the edge markers inside the axes
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)

@@ -3,13 +3,15 @@
 ``veriloc-rt plot RUN_DIR --out DIR --plot-format pdf --dpi 300`` (paper-ready figures):
 ``outcomes``, ``detection_rates`` (uninformative detectors without an attack bar), ``roc`` and
 each scenario's ``<scenario>_timeseries`` and ``<scenario>_map`` (the buildings under the
-paths; the geometry rebuilt from the run's config, nothing traced), drawn from
-``metrics.json``, ``run.json`` and the ``<scenario>_results.csv`` files into ``DIR`` (never into
-the run folder, whose PNGs stay as the run wrote them).
+paths; the geometry rebuilt from the run's config, nothing traced; after a traced-power choice
+the BSs the run measured, from its links CSVs, apart from the candidates never chosen), drawn
+from ``metrics.json``, ``run.json`` and the ``<scenario>_results.csv`` files into ``DIR``
+(never into the run folder, whose PNGs stay as the run wrote them).
 """
 
 from __future__ import annotations
 
+import csv
 import json
 import tempfile
 from pathlib import Path
@@ -21,13 +23,41 @@ from ..errors import InputError
 from . import plots
 from ..analysis.detection import analyse_detection
 from .paper import PAPER_RATES
-from .results import read_rows, results_path
+from .results import links_path, read_rows, results_path
 from .roc_report import ROC_TITLE, plot_roc
 
-__all__ = ["PLOT_FORMATS", "replot"]
+__all__ = ["PLOT_FORMATS", "replot", "run_serving_mask"]
 
 #: the file formats ``--plot-format`` takes (matplotlib's writers for them need nothing else)
 PLOT_FORMATS = ("png", "pdf", "svg")
+
+
+def run_serving_mask(run_dir: str | Path, scenarios: list[str], num_bs: int
+                     ) -> np.ndarray | None:
+    """[num_bs] bool, the BSs some point of the run measured: the ``bs_id`` column of its
+    scenarios' ``<scenario>_links.csv`` (a traced-power choice is not in the config: rebuilding
+    the geometry gives only the candidates); None without a links file.
+
+    :raises InputError: naming the links file whose ``bs_id`` is not a BS id of the run
+    """
+    ids: list[int] = []
+    found = False
+    for s in scenarios:
+        path = links_path(run_dir, s)
+        if not path.is_file():
+            continue
+        found = True
+        with open(path, newline="") as fh:
+            for line, row in enumerate(csv.DictReader(fh), start=2):
+                try:
+                    b = int(row["bs_id"])
+                except (KeyError, TypeError, ValueError):
+                    raise InputError(f"{path}:{line}", "no integer bs_id") from None
+                if not 0 <= b < num_bs:
+                    raise InputError(f"{path}:{line}", f"bs_id {b} is not a BS of the run "
+                                     f"(0..{num_bs - 1})")
+                ids.append(b)
+    return plots.serving_mask(num_bs, ids) if found else None
 
 
 def replot(run_dir: str | Path, out_dir: str | Path, fmt: str = "png",
@@ -72,9 +102,12 @@ def replot(run_dir: str | Path, out_dir: str | Path, fmt: str = "png",
             with tempfile.TemporaryDirectory(prefix="veriloc-plot-") as tmp:
                 geo = build_geometry(cfg, tmp)   # the run's seed: the run's scene and paths
             buildings = plots.map_buildings(geo)
+            serving = (run_serving_mask(run_dir, list(rows), len(geo.bs_pos))
+                       if geo.candidates is not None else None)
             for s in rows:
                 data = plots.read_results_csv(results_path(run_dir, s))
                 written.append(plots.plot_trajectory_map(
                     data, geo.bs_pos, out_dir / f"{s}_map.{fmt}",
-                    adversary_xy=geo.adversary.pos[:, :2], title=s, buildings=buildings))
+                    adversary_xy=geo.adversary.pos[:, :2], title=s, buildings=buildings,
+                    serving=serving))
     return written

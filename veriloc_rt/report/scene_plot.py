@@ -6,11 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .plots import new_axes, save_figure
+from .plots import SERVING_LABEL, draw_bs, new_axes, save_figure
 
 
 def plot_top_view(geometry, path: str | Path | None = None, title: str | None = None,
-                  estimated_xy: np.ndarray | None = None, ax=None):
+                  estimated_xy: np.ndarray | None = None, ax=None, serving=None):
     """A top view of ``geometry`` (a :class:`~veriloc_rt.world.geometry.Geometry`).
 
     Emitted buildings are dark, buildings of the full grid that the crop left out are light,
@@ -19,6 +19,10 @@ def plot_top_view(geometry, path: str | Path | None = None, title: str | None = 
     orange dots.
 
     :param estimated_xy: [num_points, 2] float64, m, optional estimated positions to overlay
+    :param serving: [num_bs] bool, the BSs some point measures
+        (:func:`~veriloc_rt.report.plots.serving_mask`): drawn apart from the candidate sites
+        no point chose; None: all as serving BSs, or, before a traced-power choice
+        (``geometry.candidates`` set), all as candidate sites
     :param ax: a matplotlib ``Axes`` to draw on (``path`` unused): the Figure is returned, as
         it is without ``ax`` and ``path``; with ``path`` the figure is saved there (png, pdf or
         svg by the suffix) and the path returned
@@ -65,7 +69,8 @@ def plot_top_view(geometry, path: str | Path | None = None, title: str | None = 
         for c in layout.cell_centre(cells):
             ax.plot(c[0] + layout.side * np.cos(ang), c[1] + layout.side * np.sin(ang), "--",
                     color="tab:red", lw=0.8, alpha=0.6)
-    ax.plot(bs[:, 0], bs[:, 1], "^", color="tab:red", ms=11, mec="k", label="serving BSs")
+    draw_bs(ax, bs, serving, label="candidate sites (chosen by traced power)"
+            if getattr(geometry, "candidates", None) is not None else SERVING_LABEL)
     for i, p in enumerate(bs):
         ax.annotate(f"BS{i} ({p[2]:.0f} m)", p[:2], textcoords="offset points", xytext=(6, 6),
                     fontsize=9)

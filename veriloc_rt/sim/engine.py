@@ -106,33 +106,44 @@ def compute_propagation(cfg: Config, geometry: Geometry, progress: Progress | No
 
 
 def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | None = None,
-                         cache_dir: str | Path | None = "default",
-                         workers: int = 1) -> tuple[Geometry, Propagation]:
+                         cache_dir: str | Path | None = "default", workers: int = 1,
+                         points: np.ndarray | None = None,
+                         adversary: bool = True) -> tuple[Geometry, Propagation]:
     """``topology.selection`` 'traced_power': every candidate site of each point
     (``geometry.candidates``) is traced to it, the point measures the ``num_trps`` candidates
     with the strongest received power (the links' total path gain, averaged over the UE's
     elements; every site transmits ``channel.bs_max_power_dbm``, so the gain orders the
     powers), and the adversary's links are then traced from the chosen sites. The candidates'
     links are cached as any others; the chosen BS -> UE links are those already traced.
+    ``veriloc-rt run``, ``compare`` (its ray-tracing arm, through :func:`run`), ``bench`` and
+    ``validate`` all choose here.
 
+    :param points: indices of the points whose candidates are traced (None: every point); the
+        others keep their nearest candidates (no path to order them) and no traced link
+    :param adversary: False: no adversary link is traced (bench, validate)
     :returns: the geometry with the chosen serving sets (slot 0 the strongest), its links
     """
     model = PROPAGATION_REGISTRY.get(cfg.propagation.model)()
     cand = geometry.candidates
     P = geometry.num_points
+    on = np.ones(P, bool)
+    if points is not None:
+        on = np.zeros(P, bool)
+        on[np.asarray(points, dtype=int)] = True
     padded = np.where(cand >= 0, cand, cand[:, :1])   # a repeated link is traced once
     stage = "ray tracing"
     cb = (lambda d, n: progress(stage, d, n)) if progress else None
     t0 = time.perf_counter()
     cand_prop = model(replace(geometry, serving=padded), cfg.propagation, cfg.seed, progress=cb,
-                      cache_dir=cache_dir, adversary_points=np.zeros(P, bool), workers=workers)
+                      cache_dir=cache_dir, adversary_points=np.zeros(P, bool), workers=workers,
+                      ue_points=on)
     # the BS antennas before the choice: a point measures the sites strongest through them
     cand_prop = apply_bs_antenna(cand_prop, geometry, cfg.topology)
     power = cand_prop.bs_ue.path_power().sum(axis=-1)            # [P, C] linear
     serving, col = strongest_serving(cand, power, cfg.topology.num_trps)
     chosen = replace(geometry, serving=serving)
-    attacks = any(s != "none" for s in cfg.run.scenarios)
-    window = cfg.run.attack_points(P) & attacks
+    attacks = adversary and any(s != "none" for s in cfg.run.scenarios)
+    window = cfg.run.attack_points(P) & attacks & on
     adv_prop = model(chosen, cfg.propagation, cfg.seed, progress=cb, cache_dir=cache_dir,
                      adversary_points=window, workers=workers, ue_points=np.zeros(P, bool))
     adv_prop = apply_bs_antenna(adv_prop, chosen, cfg.topology)
@@ -141,8 +152,8 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
     stats = {k: cand_prop.stats[k] + adv_prop.stats[k]
              for k in cand_prop.stats if isinstance(cand_prop.stats[k], (int, float))
              and isinstance(adv_prop.stats.get(k), (int, float))}
-    reached = (cand_prop.bs_ue.has_path() & (cand >= 0)).sum(axis=1)   # [P] candidates
-    stats.update(wall_s=time.perf_counter() - t0, candidate_links=int((cand >= 0).sum()),
+    reached = (cand_prop.bs_ue.has_path() & (cand >= 0)).sum(axis=1)[on]   # candidates
+    stats.update(wall_s=time.perf_counter() - t0, candidate_links=int((cand[on] >= 0).sum()),
                  candidates_with_path=[int(np.min(reached)), float(np.median(reached)),
                                        int(np.max(reached))],
                  candidate_trace=cand_prop.stats, adversary_trace=adv_prop.stats)
@@ -150,7 +161,7 @@ def traced_power_serving(cfg: Config, geometry: Geometry, progress: Progress | N
         stats["bs_antenna"] = cand_prop.stats["bs_antenna"]
     log.info("traced-power selection: %d candidate links over %d points (%.1f per point), "
              "%d sites; candidates with a path per point: min %d, median %g, max %d",
-             stats["candidate_links"], P, stats["candidate_links"] / max(P, 1),
+             stats["candidate_links"], int(on.sum()), stats["candidate_links"] / max(on.sum(), 1),
              len(geometry.bs_pos), *stats["candidates_with_path"])
     return chosen, Propagation(bs_ue=bs_ue, bs_adv=adv_prop.bs_adv, adv_ue=adv_prop.adv_ue,
                                stats=stats)
@@ -182,7 +193,8 @@ def _peak_rss_mib() -> dict:
 
 def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | bool | None = None,
         resume: bool = False, workers: int = 1, scheduler=None, force: bool = False,
-        cache_dir: str | Path | None = "default", save_cir: bool = False) -> Results:
+        cache_dir: str | Path | None = "default", save_cir: bool = False,
+        geometry: Geometry | None = None) -> Results:
     """Run every configured scenario; with ``out_dir``, write results, metrics and plots there.
 
     One realisation: ``run.realisations`` is for :func:`veriloc_rt.sim.montecarlo.run_montecarlo`.
@@ -210,6 +222,9 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
     :param save_cir: also write the run's CIRs into ``out_dir``: ``cir_bs_to_ue.npz``,
         ``cir_bs_to_adversary.npz``, ``cir_adversary_to_ue.npz`` (:meth:`CIR.to_arrays`; read
         back with ``CIR.from_arrays(np.load(path))``, then ``.to_sionna(point)``)
+    :param geometry: the run's geometry, built from this config's world by another run, with
+        its serving sets as they are (no selection; ``compare``'s stochastic twin measures the
+        TRPs its ray-tracing arm chose by traced power); ``run.json`` says so. None: built here
     :raises InputError: ``--out DIR: ...`` (locked, not empty, not a folder), ``--resume: ...``,
         ``<file>: ...`` (a file of the folder that is not a regular one, a damaged ``run.json``
         or results CSV on resume)
@@ -222,7 +237,7 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
         bar = progress
         try:
             return run(cfg, out_dir, progress, resume, workers, scheduler, force, cache_dir,
-                       save_cir)
+                       save_cir, geometry)
         finally:
             bar.close()
     # absolute, as a Monte Carlo's: run.json records the scene's path under it, which a
@@ -242,7 +257,8 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
             else:
                 check_fresh(out, cfg, force)
         try:
-            return _run(cfg, out, progress, resume, workers, client, cache_dir, save_cir)
+            return _run(cfg, out, progress, resume, workers, client, cache_dir, save_cir,
+                        geometry)
         except BaseException:   # Ctrl-C, SIGTERM, a full disk, an error: resumable
             if out is not None:
                 mark_stopped(out)
@@ -250,26 +266,33 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
 
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
-         client, cache_dir: str | Path | None = "default", save_cir: bool = False) -> Results:
+         client, cache_dir: str | Path | None = "default", save_cir: bool = False,
+         given: Geometry | None = None) -> Results:
     timing: dict = {}     # seconds only
     resources: dict = {}  # workers, scheduler, peak memory
     t0 = time.perf_counter()
     scene_dir = (out / "scene") if out else Path(".veriloc-scene")
-    geometry = build_geometry(cfg, scene_dir)
+    # a given geometry's serving sets are already chosen (its candidates stay for the maps)
+    geometry = build_geometry(cfg, scene_dir) if given is None else given
     check_run_inputs(cfg, geometry)  # every input checked now, before any tracing
     keys = run_keys(cfg, len(geometry.bs_pos))
     timing["geometry"] = time.perf_counter() - t0
     fields = {"scene_xml": str(geometry.scene_xml)}
+    if given is not None:
+        fields["serving"] = "given by the caller (compare: the ray-tracing arm's choice)"
     if out:
         if not resume:
             clear_run_files(out)
         # before tracing: a run stopped there can be resumed
         write_run_json(out, cfg, "running", timing, fields)
         if not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
-            plot_top_view(geometry, out / "scene_top_view.png")
+            plot_top_view(geometry, out / "scene_top_view.png",
+                          serving=run_serving(geometry) if given is not None else None)
     t1 = time.perf_counter()
-    if geometry.candidates is not None:
+    if geometry.candidates is not None and given is None:
         geometry, prop = traced_power_serving(cfg, geometry, progress, cache_dir, workers)
+        if out:   # drawn before the choice with every candidate alike: now the chosen apart
+            plot_top_view(geometry, out / "scene_top_view.png", serving=run_serving(geometry))
     else:
         prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
@@ -448,6 +471,15 @@ def _write_plots(out: Path, metrics: dict) -> None:
                                title="correct decisions (dashed: the paper, on UMa)")
 
 
+def run_serving(geometry: Geometry) -> np.ndarray | None:
+    """[num_bs] bool, the BSs some point measures, for the maps, where a run chose among
+    candidate sites (``topology.selection`` 'traced_power'); None otherwise (every BS of the
+    run serves some point)."""
+    if geometry.candidates is None:
+        return None
+    return plots.serving_mask(len(geometry.bs_pos), geometry.serving)
+
+
 def _scenario_plots(out: Path, cfg: Config, geometry: Geometry, scenario: str) -> list[Path]:
     """A finished scenario's time series and map, from its CSV."""
     window = cfg.run.attack_points(geometry.num_points)
@@ -458,5 +490,6 @@ def _scenario_plots(out: Path, cfg: Config, geometry: Geometry, scenario: str) -
     plots.plot_time_series(data, files[0], span if scenario != "none" else None, title=scenario)
     plots.plot_trajectory_map(data, geometry.bs_pos, files[1],
                               adversary_xy=geometry.adversary.pos[:, :2], title=scenario,
-                              buildings=plots.map_buildings(geometry))
+                              buildings=plots.map_buildings(geometry),
+                              serving=run_serving(geometry))
     return files

@@ -38,13 +38,17 @@ whose DL fix is lost, gained or more than 1 m off the reference's; costs within
 test on the units where one of them alone is off, :data:`ACCURACY_ALPHA`) is marked per group;
 the chart, a CSV,
 JSON and a markdown table are written by :func:`write_bench`.
+
+With ``topology.selection`` 'traced_power' the config's own ray tracing chooses the TRPs of the
+evaluated points once (:func:`~veriloc_rt.sim.engine.traced_power_serving`, the run's selection,
+from the cache when the run traced them); every setting then traces those serving links.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -56,6 +60,7 @@ from ..fileio import atomic_output, atomic_write_text, json_text
 from .diagnostics import BenignRun, benign_chain, finite_percentiles, wrap_deg
 from ..propagation import link_metrics as lm
 from ..world.geometry import build_geometry
+from ..sim.engine import traced_power_serving
 from .timing import timed_trace
 from ..sim.run_folder import run_keys
 from ..propagation.stochastic import uma_propagation
@@ -395,7 +400,7 @@ def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
     """The serving links' CIRs at ``points`` (the other points' links are not traced) and the
     warm cost per link: the fastest of ``repeats`` identical traces (:func:`timed_trace`)."""
     prop, best = timed_trace(geometry, cfg, points, adversary=False, repeats=repeats)
-    return prop.bs_ue, best / (3 * np.unique(points).size)
+    return prop.bs_ue, best / (geometry.serving.shape[1] * np.unique(points).size)
 
 
 def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int | None = None,
@@ -420,6 +425,11 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     total = len(settings) + (TIMING_PASSES - 1) * len(timed_again)
     geo0 = _geometry(cfg, out / "scenes")
     idx = np.unique(np.linspace(0, geo0.num_points - 1, n_pts).round().astype(int))
+    if geo0.candidates is not None:
+        # topology.selection 'traced_power': the config's own trace chooses the TRPs of the
+        # evaluated points once; every setting then traces those links (the same TRPs)
+        geo0, _ = traced_power_serving(cfg, geo0, points=idx, adversary=False)
+        geo0 = replace(geo0, candidates=None)
     keys = run_keys(cfg, len(geo0.bs_pos))
     t_start = time.perf_counter()
     done = 0
@@ -439,7 +449,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     else:
         t = time.perf_counter()
         bs_ue0 = uma_propagation(geo0, cfg.propagation, cfg.seed).bs_ue
-        t_link0 = (time.perf_counter() - t) / (3 * geo0.num_points)
+        t_link0 = (time.perf_counter() - t) / geo0.serving.size
 
     # each setting's CIRs and chain run, keyed by its (group, label): unique within a sweep
     runs: dict[tuple[str, str], BenignRun] = {}
@@ -448,7 +458,9 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
     rt = [s for s in settings if s.group == "raytrace"]
     for s in sorted(rt, key=lambda s: s.role != "reference"):   # reference first
         c = patched_config(cfg, s.patch)
-        geo = _geometry(c, out / "scenes") if c.scene.margin_m != cfg.scene.margin_m else geo0
+        geo = geo0
+        if c.scene.margin_m != cfg.scene.margin_m:
+            geo = replace(_geometry(c, out / "scenes"), serving=geo0.serving, candidates=None)
         if not np.allclose(geo.ue.pos, geo0.ue.pos):
             raise RuntimeError(f"{s.label}: the trajectory depends on the crop margin")
         if s.role == "config":
@@ -506,6 +518,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         for s, f in zip(grp, front):
             s.pareto = bool(f)
     meta = {"points": idx.tolist(), "num_points": int(idx.size), "quick": quick,
+            "serving": geo0.serving[idx].tolist(),   # BS ids each evaluated point measures
             "propagation_model": cfg.propagation.model, "seed": cfg.seed,
             "wall_s": time.perf_counter() - t_start,
             "reference": {g: next(s.patch for s in settings if s.group == g and s.role == "reference")

@@ -4,7 +4,10 @@ trajectory and attacks.
 :func:`run_compare` runs the config twice with :func:`veriloc_rt.sim.engine.run`, once with
 ``propagation.model = 'raytrace'`` and once with the stochastic twin (the config's
 ``uma_mode``), into ``<out>/raytrace`` and ``<out>/<twin>``; geometry, keys, noise streams and
-adversary draws are the same, only the channel differs.
+adversary draws are the same, only the channel differs. With ``topology.selection``
+'traced_power' the ray-tracing arm chooses each point's TRPs by traced power
+(:func:`~veriloc_rt.sim.engine.traced_power_serving`) and the twin measures the same TRPs
+(its run is given that geometry; ``comparison.json``'s ``"twin"`` says so).
 
 The twin (``propagation.stochastic_twin``): 'uma' or 'umi' as given, or 'auto': UMi - Street
 Canyon when the median BS antenna height lies below the scene's median roof height (street-level
@@ -294,10 +297,17 @@ def run_compare(cfg: Config, out_dir: str | Path, progress: Progress | None = No
                 twin["pathloss_offset_db"] = off
                 prop = dataclasses.replace(prop, stochastic_pathloss_offset_los_db=off["los"],
                                            stochastic_pathloss_offset_nlos_db=off["nlos"])
-        c = cfg.replace(propagation=prop)
+        given, topo = None, cfg.topology
+        if arm == "twin" and cfg.topology.selection == "traced_power":
+            # the twin measures the TRPs the traced arm chose (only the channel differs); its
+            # own config cannot select by traced power (nothing is traced)
+            given, topo = geometry, dataclasses.replace(cfg.topology, selection="power")
+            twin["serving"] = "the ray-tracing arm's (topology.selection traced_power)"
+        c = cfg.replace(propagation=prop, topology=topo)
         t = time.perf_counter()
         # its own sub-folders: replaced by every compare into this --out, as its other files
-        res = run(c, out / model, progress=progress, workers=workers, force=True)
+        res = run(c, out / model, progress=progress, workers=workers, force=True,
+                  geometry=given)
         timing[f"run_{model}"] = time.perf_counter() - t
         if arm == "raytrace":
             geometry, traced_cir = res.geometry, res.propagation.bs_ue

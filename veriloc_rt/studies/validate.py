@@ -1,7 +1,8 @@
 """Propagation validation (``veriloc-rt validate``): traced path loss beside published models.
 
 :func:`run_validate` ray-traces the serving BS -> UE links of the config's trajectory (the
-machinery and cache of ``veriloc-rt run``; the adversary's links are not traced) and takes each
+machinery and cache of ``veriloc-rt run``, its traced-power choice of the TRPs with
+``topology.selection`` 'traced_power'; the adversary's links are not traced) and takes each
 link's path loss as ``-10 lg sum |a|^2`` over its valid paths: the local-mean (incoherent) loss
 between isotropic antennas. The UE's ULA elements see each path with a unit-modulus phase only,
 so the sum is the same on every element (:meth:`~veriloc_rt.propagation.cir.CIR.path_power`
@@ -40,6 +41,7 @@ from ..propagation.uma import uma_pathloss_db
 from ..propagation.raytrace import trace
 from ..sim.checks import check_materials
 from ..world.geometry import build_geometry
+from ..sim.engine import traced_power_serving
 from ..report.validation_plot import plot_validation_pathloss
 
 log = logging.getLogger(__name__)
@@ -239,9 +241,13 @@ def run_validate(cfg: Config, out_dir: str | Path | None = None, progress: Progr
     check_materials(cfg)  # traced whatever propagation.model says
     timing["geometry"] = time.perf_counter() - t0
     t1 = time.perf_counter()
-    cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None
-    prop = trace(geometry, cfg.propagation, cfg.seed, progress=cb,
-                 adversary_points=np.zeros(geometry.num_points, bool))
+    if geometry.candidates is not None:
+        # topology.selection 'traced_power': the run's choice (the strongest candidates)
+        geometry, prop = traced_power_serving(cfg, geometry, progress, adversary=False)
+    else:
+        cb = (lambda d, n: progress("ray tracing", d, n)) if progress else None
+        prop = trace(geometry, cfg.propagation, cfg.seed, progress=cb,
+                     adversary_points=np.zeros(geometry.num_points, bool))
     timing["ray_tracing"] = time.perf_counter() - t1
     cir = prop.bs_ue
     fc = float(cir.carrier_frequency)
@@ -272,6 +278,11 @@ def run_validate(cfg: Config, out_dir: str | Path | None = None, progress: Progr
             flags[n].append(f"{partial} of {len(frac)} links run partly outside the street grid "
                             "(their median share over buildings "
                             f"{np.median(frac[frac < 0.99]):.2f})")
+    if cfg.topology.selection == "traced_power":
+        for n in MODELS:
+            flags[n].append(f"each point's {cfg.topology.num_trps} links are the strongest of its "
+                            "traced candidates (topology.selection traced_power): the traced "
+                            "loss is biased low against a model's median")
     if not in_street.all():
         flags["p1411"].append(f"{int((~in_street).sum())} links with the UE off the street grid "
                               "(phi = 90 deg)")
