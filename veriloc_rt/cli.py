@@ -131,7 +131,9 @@ def _run(cfg, out: Path, args) -> int:
     s = res.summary
     what = (f"{s['num_buildings']} buildings" if s["num_buildings"] is not None
             else f"{s['num_triangles']} triangles")
-    print(f"scene: {what}, {s['num_bs']} serving BSs, "
+    sites = (f"{s['num_bs_serving']} serving BSs" if s["num_bs_serving"] == s["num_bs"] else
+             f"{s['num_bs_serving']} serving BSs of {s['num_bs']} candidate sites")
+    print(f"scene: {what}, {sites}, "
           f"{s['num_points']} points, UE path {s['ue_path_length_m']:.0f} m "
           f"(mean speed {s['ue_speed_mps_mean']:.1f} m/s), propagation: {cfg.propagation.model}")
     for name in ("bs_to_ue", "bs_to_adversary", "adversary_to_ue"):

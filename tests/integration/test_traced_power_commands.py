@@ -175,6 +175,10 @@ def test_maps_draw_serving_apart_from_unused_candidates(setup, monkeypatch):
     assert main(["run", setup["config"], "--out", str(out), "--workers", "1", "-q"]) == 0
     assert len(seen) == 1
     _check_map(seen[0], setup)
+    # the summary counts the chosen sites apart from the candidates
+    summary = json.loads((out / "propagation_summary.json").read_text())
+    assert summary["num_bs_serving"] == len(np.unique(setup["expect"]))
+    assert summary["num_bs"] > summary["num_bs_serving"]
     # the scene's top view: drawn before the choice (every candidate alike), then again
     assert len(tops) == 2 and list(tops[0]) == ["candidate sites (chosen by traced power)",
                                                 "legend"]

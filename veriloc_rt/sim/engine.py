@@ -172,6 +172,8 @@ def propagation_summary(geometry: Geometry, prop: Propagation) -> dict:
     return {
         "num_points": geometry.num_points,
         "num_bs": int(len(geometry.bs_pos)),
+        # the sites some point measures (all of them unless the run chose among candidates)
+        "num_bs_serving": int(plots.serving_mask(len(geometry.bs_pos), geometry.serving).sum()),
         "num_buildings": getattr(scene, "num_buildings", None),
         "num_triangles": int(scene.box_meshes()[1].shape[0] if hasattr(scene, "box_meshes")
                              else scene.triangles.shape[0]),
