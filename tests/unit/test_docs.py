@@ -117,7 +117,8 @@ def test_readme_states_the_command_ci_runs():
     # .ci/run executes "the README's test command": its last line must be in the README verbatim
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
     assert ci == ("bash scripts/setup.sh && .venv/bin/lint-imports && .venv/bin/python -m pytest "
-                  "-q && .venv/bin/python -m pytest -q -m heavy")
+                  "-q -n 2 --dist loadscope && .venv/bin/python -m pytest -q -n 2 --dist loadscope "
+                  "-m heavy")
     readme = (ROOT / "README.md").read_text()
     assert ci in readme
     assert "bash scripts/setup.sh && .venv/bin/veriloc-rt run --out results" in readme
