@@ -63,12 +63,13 @@ from ..world.geometry import build_geometry
 from ..sim.engine import traced_power_serving
 from .timing import timed_trace
 from ..sim.run_folder import run_keys
+from ..propagation.antenna import apply_sectors, panel_of, sector_boresights, site_first_boresight
 from ..propagation.stochastic import uma_propagation
 from ..report.plots import plot_pareto
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Knob", "Setting", "BenchResult", "sweep_settings", "run_bench", "pareto_front",
+__all__ = ["Knob", "Setting", "BenchResult", "sweep_settings", "run_bench", "pareto_front", "with_bs_antenna",
            "more_exact", "write_bench", "patched_config", "chain_deviation", "channel_deviation",
            "position_off_units", "power_off_units"]
 
@@ -397,10 +398,23 @@ def _geometry(cfg: Config, scene_root: Path):
 
 
 def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
-    """The serving links' CIRs at ``points`` (the other points' links are not traced) and the
-    warm cost per link: the fastest of ``repeats`` identical traces (:func:`timed_trace`)."""
+    """The serving links' CIRs at ``points`` (the other points' links are not traced), through
+    the config's BS antennas (:func:`with_bs_antenna`), and the warm cost per link: the fastest
+    of ``repeats`` identical traces (:func:`timed_trace`)."""
     prop, best = timed_trace(geometry, cfg, points, adversary=False, repeats=repeats)
-    return prop.bs_ue, best / (geometry.serving.shape[1] * np.unique(points).size)
+    return (with_bs_antenna(prop.bs_ue, cfg, geometry),
+            best / (geometry.serving.shape[1] * np.unique(points).size))
+
+
+def with_bs_antenna(bs_ue, cfg: Config, geometry):
+    """The BS -> UE CIRs ``bs_ue`` through ``cfg.topology``'s BS antennas, as a run applies them
+    (:func:`~veriloc_rt.propagation.antenna.apply_bs_antenna`: each link its site's strongest
+    sector); isotropic antennas: ``bs_ue`` itself."""
+    panel = panel_of(cfg.topology)
+    if panel is None:
+        return bs_ue
+    bore = sector_boresights(site_first_boresight(geometry), cfg.topology.sectors)
+    return apply_sectors(bs_ue, panel, bore)[0]
 
 
 def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int | None = None,
@@ -448,7 +462,7 @@ def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int
         bs_ue0, t_link0 = _trace(cfg, geo0, idx)
     else:
         t = time.perf_counter()
-        bs_ue0 = uma_propagation(geo0, cfg.propagation, cfg.seed).bs_ue
+        bs_ue0 = with_bs_antenna(uma_propagation(geo0, cfg.propagation, cfg.seed).bs_ue, cfg, geo0)
         t_link0 = (time.perf_counter() - t) / geo0.serving.size
 
     # each setting's CIRs and chain run, keyed by its (group, label): unique within a sweep

@@ -261,3 +261,29 @@ def test_pareto_front_accuracy_resolution():
     assert pareto_front(cost, err, cost_rtol=0.10, better=better).tolist() == [True, True, True, True]
     with pytest.raises(ValueError, match="better"):
         pareto_front(cost, err, better=np.zeros((3, 3), bool))
+
+
+@pytest.mark.parametrize("antenna", ["isotropic", "tr38901"])
+def test_bench_cirs_go_through_the_bs_antennas_as_a_run_does(antenna, tmp_path):
+    """The bench's CIRs of a config with sector panels are the run's (``compute_propagation``
+    applies the panels to the propagation's links): the same gains bit for bit, and with
+    panels different from the isotropic links (else the check could not fail)."""
+    import numpy as np
+
+    from veriloc_rt.propagation.stochastic import uma_propagation
+    from veriloc_rt.sim.engine import compute_propagation
+    from veriloc_rt.studies.bench import with_bs_antenna
+    from veriloc_rt.world.geometry import build_geometry
+
+    cfg = config_from_dict({"propagation": {"model": "uma", "uma_mode": "pathloss_only"},
+                            "topology": {"bs_antenna": antenna, "num_trps": 4},
+                            "trajectory": {"num_points": 6}})
+    geo = build_geometry(cfg, tmp_path / "scene")
+    raw = uma_propagation(geo, cfg.propagation, cfg.seed).bs_ue
+    bench = with_bs_antenna(raw, cfg, geo)
+    run = compute_propagation(cfg, geo).bs_ue
+    np.testing.assert_array_equal(bench.gains, run.gains)
+    if antenna == "isotropic":
+        assert bench is raw
+    else:
+        assert not np.allclose(np.abs(bench.gains), np.abs(raw.gains))
