@@ -1,5 +1,6 @@
 """BS sites that respect a mesh scene: the hexagonal layout moved onto the nearest roof, or
-sites read from a CSV file; serving sets for CSV sites.
+sites read from a CSV file; serving sets for CSV sites; the command line of the scripts that
+write candidate sites CSVs (:class:`SitesTool`, :func:`write_sites_csv`).
 
 Rooftop placement: the scene's buildings are rasterised at :data:`ROOF_GRID_M`; a site moves
 to the centre of the nearest roof cell at least :data:`ROOF_EDGE_M` inside its building's
