@@ -591,7 +591,10 @@ def outputs_md() -> str:
            "Mitsuba, Dr.Jit, NumPy, ...), `git_revision`, `timing_s`, `resources`, `scene_xml` "
            "(relative to the run folder). `--resume` compares its config with the new one |",
            "| `propagation_summary.json` | the scene (buildings or triangles, BSs, points, the "
-           "UE's path length and mean speed) and, per link set (`bs_to_ue`, `bs_to_adversary`, "
+           "UE's path length and mean speed), `num_bs` (the run's BSs: every candidate site "
+           "with `topology.selection` `traced_power`), `num_bs_serving` (those some point "
+           "measures), `serving_bs` (their ids, where the run chose among candidate sites; "
+           "null otherwise) and, per link set (`bs_to_ue`, `bs_to_adversary`, "
            "`adversary_to_ue`), `links`, `links_with_path_share`, `los_share` (fractions), "
            "`paths_per_link_mean`, rms delay spread p50/p95, first-path excess delay p50/p95, "
            "`diffraction_path_share` (fraction of the paths that are diffraction-only); "

@@ -16,33 +16,28 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 
-from veriloc_rt.config import load_config
-from veriloc_rt.errors import InputError
-from veriloc_rt.world.scene.external import MeshScene
-from veriloc_rt.world.sites import rooftop_sites
+from veriloc_rt.cli import ArgumentParser, script_main
+from veriloc_rt.world.sites import SitesTool, rooftop_sites, write_sites_csv
 from veriloc_rt.world.topology import HexLayout
 
+#: the flags shared with scripts/street_sites.py, and what this one's mean
+TOOL = SitesTool(spacing="--isd", spacing_default=200.0,
+                 spacing_help="inter-site distance of the hexagonal layout, m",
+                 height="--mast", height_default=3.0,
+                 height_help="mast height above the roof's highest point there, m",
+                 min_height=0.0, canyon="the canyon has no roofs to search")
 
-def main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("config")
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--isd", type=float, default=200.0)
-    ap.add_argument("--mast", type=float, default=3.0)
-    ap.add_argument("--region", type=float, default=None,
-                    help="half-side of the square covered (default: the config's "
-                         "trajectory.region_m + 2 x isd)")
-    args = ap.parse_args(argv)
-    cfg = load_config(args.config)
-    if cfg.scene.is_canyon:
-        print("error: scene.source: a mesh scene is needed (the canyon has no roofs to search)",
-              file=sys.stderr)
-        return 2
-    region = args.region or cfg.trajectory.region_m + 2 * args.isd
+
+def roof_sites(args: argparse.Namespace) -> str:
+    """Write the sites CSV of parsed ``args``; the line that says what was written.
+
+    :raises InputError: a bad flag, config or scene (:meth:`SitesTool.inputs`), a scene
+        without a roof wide enough, too few sites, an ``--out`` that cannot be written
+    """
+    cfg, scene, region = TOOL.inputs(args)
     layout = HexLayout(args.isd, cfg.topology.bs_height_m, np.zeros(2), 0.0)
     reach = int(math.ceil(region / args.isd)) + 2
     d = np.arange(-reach, reach + 1)
@@ -52,19 +47,18 @@ def main(argv: list[str]) -> int:
     xy = xy[np.sort(first)]
     xy = xy[np.all(np.abs(xy) <= region, axis=1)]
     xy = xy[np.argsort(np.linalg.norm(xy, axis=1), kind="stable")]
-    scene = MeshScene.from_xml(cfg.scene.xml_path)
-    try:
-        pos = rooftop_sites(scene, xy, args.mast)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    pos = rooftop_sites(scene, xy, args.mast)
     _, first = np.unique(np.round(pos * 1000.0).astype(np.int64), axis=0, return_index=True)
     pos = pos[np.sort(first)]
-    lines = ["x,y,z"] + [f"{p[0]:.1f},{p[1]:.1f},{p[2]:.1f}" for p in pos]
-    Path(args.out).write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.out}: {len(pos)} rooftop sites (hexagonal sites {args.isd:g} m ISD "
-          f"within {region:g} m, on the nearest roofs, {args.mast:g} m masts)")
-    return 0
+    TOOL.check_count(len(pos))
+    write_sites_csv(args.out, pos)
+    return (f"wrote {args.out}: {len(pos)} rooftop sites (hexagonal sites {args.isd:g} m ISD "
+            f"within {region:g} m, on the nearest roofs, {args.mast:g} m masts)")
+
+
+def main(argv: list[str]) -> int:
+    args = TOOL.parser(__doc__.splitlines()[0], ArgumentParser).parse_args(argv)
+    return script_main(lambda: roof_sites(args))
 
 
 if __name__ == "__main__":

@@ -18,13 +18,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import numpy as np
 
-from veriloc_rt.config import load_config
-from veriloc_rt.world.scene.external import MeshScene
+from veriloc_rt.cli import ArgumentParser, script_main
+from veriloc_rt.config.world import MIN_ANTENNA_HEIGHT_M
+from veriloc_rt.errors import InputError
+from veriloc_rt.world.sites import SitesTool, write_sites_csv
 from veriloc_rt.world.streets import scene_streets
+
+#: the flags shared with scripts/roof_sites.py, and what this one's mean
+TOOL = SitesTool(spacing="--spacing", spacing_default=200.0,
+                 spacing_help="least distance between two sites, m",
+                 height="--height", height_default=10.0,
+                 height_help="antenna height above the ground, m",
+                 min_height=MIN_ANTENNA_HEIGHT_M, canyon="the canyon has its own grid")
 
 
 def pick_sites(graph, spacing: float, along: float | None = None) -> np.ndarray:
@@ -56,36 +64,31 @@ def pick_sites(graph, spacing: float, along: float | None = None) -> np.ndarray:
     return np.array(picked).reshape(-1, 2)
 
 
-def main(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("config")
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--spacing", type=float, default=200.0)
-    ap.add_argument("--height", type=float, default=10.0)
-    ap.add_argument("--along", type=float, default=None,
-                    help="also points every STEP m along the streets, after the junctions")
-    ap.add_argument("--region", type=float, default=None,
-                    help="half-side of the square searched (default: the config's "
-                         "trajectory.region_m + 2 x spacing)")
-    args = ap.parse_args(argv)
-    if args.along is not None and not args.along > 0:
-        print("error: --along: a step > 0 m is needed", file=sys.stderr)
-        return 2
-    cfg = load_config(args.config)
-    if cfg.scene.is_canyon:
-        print("error: scene.source: a mesh scene is needed (the canyon has its own grid)",
-              file=sys.stderr)
-        return 2
-    region = args.region or cfg.trajectory.region_m + 2 * args.spacing
-    scene = MeshScene.from_xml(cfg.scene.xml_path)
+def street_sites(args: argparse.Namespace) -> str:
+    """Write the sites CSV of parsed ``args``; the line that says what was written.
+
+    :raises InputError: a bad flag, config or scene (:meth:`SitesTool.inputs`), too few sites,
+        an ``--out`` that cannot be written
+    """
+    if args.along is not None and not (np.isfinite(args.along) and args.along > 0):
+        raise InputError("--along", f"got {args.along:g}, expected a step > 0 m")
+    cfg, scene, region = TOOL.inputs(args)
     graph = scene_streets(scene, region, cfg.trajectory.ue_height_m)
     picked = pick_sites(graph, args.spacing, args.along)
-    lines = ["x,y,z"] + [f"{p[0]:.1f},{p[1]:.1f},{args.height:g}" for p in picked]
-    Path(args.out).write_text("\n".join(lines) + "\n")
-    print(f"wrote {args.out}: {len(picked)} street-level sites (junctions"
-          + (f" and points every {args.along:g} m along the streets" if args.along else "")
-          + f" within {region:g} m, at least {args.spacing:g} m apart, {args.height:g} m high)")
-    return 0
+    TOOL.check_count(len(picked))
+    write_sites_csv(args.out, np.column_stack([picked, np.full(len(picked), args.height)]),
+                    z_format="g")
+    return (f"wrote {args.out}: {len(picked)} street-level sites (junctions"
+            + (f" and points every {args.along:g} m along the streets" if args.along else "")
+            + f" within {region:g} m, at least {args.spacing:g} m apart, {args.height:g} m high)")
+
+
+def main(argv: list[str]) -> int:
+    ap = TOOL.parser(__doc__.splitlines()[0], ArgumentParser)
+    ap.add_argument("--along", type=float, default=None,
+                    help="also points every STEP m along the streets, after the junctions")
+    args = ap.parse_args(argv)
+    return script_main(lambda: street_sites(args))
 
 
 if __name__ == "__main__":

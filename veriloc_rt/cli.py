@@ -515,6 +515,19 @@ def argparse_field(message: str) -> tuple[str, str]:
     return "arguments", message
 
 
+def script_main(work) -> int:
+    """The exit code of a script of ``scripts/`` that does ``work()``: the line it returns is
+    printed; bad input (:class:`InputError`) is the one line ``error: <field>: <problem>`` on
+    stderr and exit code 2, as for every command (its parser: :class:`ArgumentParser`)."""
+    try:
+        text = work()
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(text)
+    return 0
+
+
 def _browser_flags(p: argparse.ArgumentParser, port_help: str,
                    browser_help: str = "do not open a browser") -> None:
     """``--port`` and ``--no-browser`` of the commands that serve a page (run --live, view, edit)."""

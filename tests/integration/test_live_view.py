@@ -61,6 +61,8 @@ def test_state_of_a_finished_run_equals_its_metrics(finished):
     summary = json.loads((finished / "propagation_summary.json").read_text())
     assert scene["ready"] and scene["attack"] == [2, 6]
     assert len(scene["bs"]) == summary["num_bs"] and len(scene["ue"]) == 8
+    # the run chose among no candidate sites: every BS drawn alike, as the run's maps do
+    assert summary["serving_bs"] is None and st["serving"] is None
     assert len(scene["buildings"]) == summary["num_buildings"]
     # the true positions of the map's layer are the run's (same seed, same geometry)
     assert [xy for xy in zip(p["x_true"], p["y_true"])] == [tuple(u) for u in scene["ue"]]

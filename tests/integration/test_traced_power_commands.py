@@ -187,3 +187,37 @@ def test_maps_draw_serving_apart_from_unused_candidates(setup, monkeypatch):
     assert main(["plot", str(out), "--out", str(setup["dir"] / "maps-plot")]) == 0
     assert len(seen) == 1
     _check_map(seen[0], setup)
+
+
+def test_live_view_sends_the_serving_sites_apart_from_unused_candidates(setup):
+    """``veriloc-rt view`` on the run's folder: the map's BSs are the candidate sites and the
+    polled state flags exactly those some point measured (the independent ranking's union),
+    as the run's maps draw them; the summary lists the same ids."""
+    import urllib.request
+
+    from veriloc_rt.live.server import TOKEN_HEADER, LiveServer
+
+    def get(url: str):
+        req = urllib.request.Request(url, headers={TOKEN_HEADER: server.token})
+        with urllib.request.urlopen(req, timeout=30) as r:
+            return json.loads(r.read())
+
+    out = setup["dir"] / "live-run"
+    assert main(["run", setup["config"], "--out", str(out), "--workers", "1", "-q"]) == 0
+    used = np.zeros(len(setup["bs_pos"]), bool)
+    used[np.unique(setup["expect"])] = True
+    assert (~used).any(), "every candidate serves some point: nothing to tell apart"
+    summary = json.loads((out / "propagation_summary.json").read_text())
+    assert summary["serving_bs"] == np.flatnonzero(used).tolist()
+    server = LiveServer(out, port=0).start()
+    try:
+        base = f"http://127.0.0.1:{server.port}/"
+        get(base + "api/scene")          # starts building the map's layer
+        server.view.wait_scene(120)
+        scene = get(base + "api/scene")
+        # the map's BSs are the run's candidates, in the ids' order (the page's coordinates
+        # are rounded to COORD_STEP_M = 0.01 m: half a step, plus float slack)
+        np.testing.assert_allclose(scene["bs"], setup["bs_pos"][:, :2], atol=0.006)
+        assert get(base + "api/state")["serving"] == used.tolist()
+    finally:
+        server.shutdown()

@@ -40,7 +40,7 @@ from ..sim.run_folder import run_is_alive
 log = logging.getLogger(__name__)
 
 __all__ = ["ResultsTail", "RateMeter", "RunFolderState", "scene_layer", "read_json",
-           "MAX_MESH_TRIANGLES", "RATE_WINDOW_S", "MAX_JSON_FILE_BYTES"]
+           "summary_serving", "MAX_MESH_TRIANGLES", "RATE_WINDOW_S", "MAX_JSON_FILE_BYTES"]
 
 #: most roof triangles of a mesh scene sent to the page (the largest ones; a city mesh can
 #: hold millions, and a top view needs the outlines only)
@@ -224,6 +224,24 @@ def scene_layer(cfg) -> dict:
     return out
 
 
+def summary_serving(summary) -> list[bool] | None:
+    """[num_bs] bool from a run's ``propagation_summary.json`` (parsed): True for the BSs some
+    point measures, where the run chose among candidate sites (its ``serving_bs`` ids), as the
+    run's maps draw them apart (:func:`~veriloc_rt.report.plots.serving_mask`); None where it
+    did not (every BS alike), before the file exists, or when it does not hold valid ids."""
+    if not isinstance(summary, dict):
+        return None
+    ids, num = summary.get("serving_bs"), summary.get("num_bs")
+    if (not isinstance(ids, list) or isinstance(num, bool) or not isinstance(num, int)
+            or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < num
+                       for i in ids)):
+        return None
+    mask = [False] * num
+    for i in ids:
+        mask[i] = True
+    return mask
+
+
 def _roof_triangles(tri: np.ndarray) -> list:
     """[n, 6] top-view triangles of a mesh: faces with a projected area (not walls) whose top
     is above the lowest ground, largest first, at most :data:`MAX_MESH_TRIANGLES`.
@@ -267,6 +285,8 @@ class RunFolderState:
         self._children: dict[Path, RunFolderState] = {}
         #: set by whoever started the run (the editor): a callable -> (returncode or None, text)
         self.process_status = None
+        #: (the summary file's identity, :func:`summary_serving` of it): read again when it changes
+        self._serving: tuple = (None, None)
 
     # -- run.json ---------------------------------------------------------------------------
     def _run_info(self) -> dict | None:
@@ -361,6 +381,26 @@ class RunFolderState:
             out["version"] = self._scene_version
             return out
 
+    def _serving_mask(self) -> list[bool] | None:
+        """:func:`summary_serving` of the folder's ``propagation_summary.json`` (read again
+        only when the file changes); None too when its BS count is not the map's (the map's
+        BSs rebuilt from the config are then not the ones the ids name)."""
+        path = self.folder / "propagation_summary.json"
+        try:
+            st = os.stat(path)
+            key = (st.st_ino, st.st_mtime_ns, st.st_size)
+        except OSError:
+            key = None
+        if key != self._serving[0]:
+            self._serving = (key, summary_serving(read_json(path)) if key is not None else None)
+        mask = self._serving[1]
+        bs = (self._scene or {}).get("bs")
+        if mask is not None and bs is not None and len(bs) != len(mask):
+            log.debug("%s: %d BSs in propagation_summary.json, %d on the map; drawn alike",
+                      self.folder, len(mask), len(bs))
+            return None
+        return mask
+
     # -- polled state -----------------------------------------------------------------------
     def _scenarios(self) -> tuple[str, ...]:
         return self._cfg.run.scenarios if self._cfg is not None else ()
@@ -387,9 +427,11 @@ class RunFolderState:
         ``scenarios``: [{name, done, total, eta_s, generation, metrics}], in run order;
         ``metrics`` as :func:`~veriloc_rt.report.results.scenario_metrics` over the rows so far.
         ``eta_s``: seconds until the whole run ends, at the rate of the last
-        :data:`RATE_WINDOW_S` (None before it is known). For a Monte Carlo folder: the state
-        of the realisation shown (:meth:`_realisation`) with the folder's own status,
-        ``montecarlo``: ``{"done", "total", "following"}`` and no overall ETA.
+        :data:`RATE_WINDOW_S` (None before it is known). ``serving``: [num_bs] bool, the map's
+        BSs some point measures, once a run that chose among candidate sites has chosen
+        (:func:`summary_serving`), else None (every BS drawn alike). For a Monte Carlo
+        folder: the state of the realisation shown (:meth:`_realisation`) with the folder's
+        own status, ``montecarlo``: ``{"done", "total", "following"}`` and no overall ETA.
         """
         mc = self._realisation(self._run_info())
         if mc is not None:
@@ -462,7 +504,7 @@ class RunFolderState:
                 "eta_s": 0.0 if status == "complete" else (rows_left / rate if rate else None),
                 "rate_points_per_s": rate,
                 "detectors": list(DETECTORS), "outcomes": list(OUTCOMES),
-                "scene_version": self._scene_version,
+                "scene_version": self._scene_version, "serving": self._serving_mask(),
             }
             sel = scenario if scenario in names else (names[0] if names else None)
             if sel is not None:

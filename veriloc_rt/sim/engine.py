@@ -174,6 +174,10 @@ def propagation_summary(geometry: Geometry, prop: Propagation) -> dict:
         "num_bs": int(len(geometry.bs_pos)),
         # the sites some point measures (all of them unless the run chose among candidates)
         "num_bs_serving": int(plots.serving_mask(len(geometry.bs_pos), geometry.serving).sum()),
+        # where the run chose among candidate sites: their ids (into the num_bs sites) that
+        # some point measures, which the maps and the live view draw apart; null otherwise
+        "serving_bs": (None if (mask := run_serving(geometry)) is None
+                       else np.flatnonzero(mask).tolist()),
         "num_buildings": getattr(scene, "num_buildings", None),
         "num_triangles": int(scene.box_meshes()[1].shape[0] if hasattr(scene, "box_meshes")
                              else scene.triangles.shape[0]),

@@ -1,5 +1,6 @@
 """BS sites that respect a mesh scene: the hexagonal layout moved onto the nearest roof, or
-sites read from a CSV file; serving sets for CSV sites.
+sites read from a CSV file; serving sets for CSV sites; the command line of the scripts that
+write candidate sites CSVs (:class:`SitesTool`, :func:`write_sites_csv`).
 
 Rooftop placement: the scene's buildings are rasterised at :data:`ROOF_GRID_M`; a site moves
 to the centre of the nearest roof cell at least :data:`ROOF_EDGE_M` inside its building's
@@ -9,7 +10,9 @@ building surface over that point, so it is above its roof and never inside a bui
 
 from __future__ import annotations
 
+import argparse
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +91,95 @@ def load_sites(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if dup is not None:
         raise InputError(name, f"sites {dup[0] + 1} and {dup[1] + 1} stand at the same position")
     return p, np.array(az)
+
+
+def write_sites_csv(path: str | Path, xyz: np.ndarray, z_format: str = ".1f") -> int:
+    """Write a sites CSV ``x,y,z`` (:func:`load_sites` reads it back), x and y to 0.1 m.
+
+    :param xyz: [num_sites, 3] float, m (z above the ground)
+    :param z_format: the format of z (``"g"``: a height given on the command line as typed)
+    :returns: the number of sites written
+    :raises InputError: ``--out: ...`` when the file cannot be written
+    """
+    xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)
+    lines = ["x,y,z"] + [f"{p[0]:.1f},{p[1]:.1f},{p[2]:{z_format}}" for p in xyz]
+    try:
+        Path(path).write_text("\n".join(lines) + "\n")
+    except OSError as exc:
+        raise InputError("--out", f"{path}: {(exc.strerror or str(exc)).lower()}") from None
+    return len(xyz)
+
+
+@dataclass(frozen=True)
+class SitesTool:
+    """The command line shared by the scripts that write candidate sites for a mesh scene
+    (``scripts/street_sites.py``, ``scripts/roof_sites.py``): ``CONFIG --out SITES.csv``, a
+    spacing flag, a height flag and ``--region``; :meth:`inputs` checks them and loads the
+    config's mesh scene, raising :class:`~veriloc_rt.errors.InputError` for anything unusable
+    (the scripts print it as one line, exit code 2).
+
+    :param spacing: the flag of the sites' spacing, m (``--spacing``, ``--isd``), > 0
+    :param height: the flag of the antenna's height, m (``--height`` above the ground,
+        ``--mast`` above the roof), > ``min_height``
+    :param canyon: why the canyon scene is refused (after "a mesh scene is needed")
+    """
+
+    spacing: str
+    spacing_default: float
+    spacing_help: str
+    height: str
+    height_default: float
+    height_help: str
+    min_height: float
+    canyon: str
+
+    def parser(self, description: str, parser_class: type = argparse.ArgumentParser
+               ) -> argparse.ArgumentParser:
+        """The shared flags on a new ``parser_class`` (the scripts pass the CLI's, whose
+        errors are one line); a script adds its own flags."""
+        ap = parser_class(description=description)
+        ap.add_argument("config", help="the config whose scene (a mesh) and region are used")
+        ap.add_argument("--out", required=True, help="the sites CSV written")
+        ap.add_argument(self.spacing, type=float, default=self.spacing_default,
+                        help=self.spacing_help)
+        ap.add_argument(self.height, type=float, default=self.height_default,
+                        help=self.height_help)
+        ap.add_argument("--region", type=float, default=None,
+                        help="half-side of the square searched, m (default: the config's "
+                             f"trajectory.region_m + 2 x {self.spacing})")
+        return ap
+
+    def inputs(self, args: argparse.Namespace) -> tuple:
+        """(config, its :class:`~veriloc_rt.world.scene.external.MeshScene`, the region's
+        half-side in m) of parsed ``args``.
+
+        :raises InputError: a flag out of range, an unreadable config, a canyon scene, a
+            scene file that is not a usable mesh
+        """
+        from ..config import load_config
+        from .scene.external import MeshScene
+
+        spacing = getattr(args, self.spacing.lstrip("-"))
+        height = getattr(args, self.height.lstrip("-"))
+        if not (math.isfinite(spacing) and spacing > 0):
+            raise InputError(self.spacing, f"got {spacing:g}, expected a distance > 0 m")
+        if not (math.isfinite(height) and height > self.min_height):
+            raise InputError(self.height, f"got {height:g}, expected a height > "
+                             f"{self.min_height:g} m")
+        if args.region is not None and not (math.isfinite(args.region) and args.region > 0):
+            raise InputError("--region", f"got {args.region:g}, expected a half-side > 0 m")
+        cfg = load_config(args.config)
+        if cfg.scene.is_canyon:
+            raise InputError("scene.source", f"a mesh scene is needed ({self.canyon})")
+        region = (args.region if args.region is not None
+                  else cfg.trajectory.region_m + 2 * spacing)
+        return cfg, MeshScene.from_xml(cfg.scene.xml_path), region
+
+    def check_count(self, num_sites: int) -> None:
+        """:raises InputError: fewer than :data:`SERVING` sites found (a sites CSV needs them)"""
+        if num_sites < SERVING:
+            raise InputError(self.spacing, f"{num_sites} sites found, a sites file needs at "
+                             f"least {SERVING}: a smaller {self.spacing} or a larger --region")
 
 
 def _first_duplicate(p: np.ndarray) -> tuple[int, int] | None:

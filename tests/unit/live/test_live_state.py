@@ -216,3 +216,29 @@ def test_map_of_a_mesh_scene_has_the_roofs_not_walls_or_ground():
     assert (len(tri) - 2) % 12 == 0
     assert len(layer["triangles"]) == 2 * num_boxes
     assert "buildings" not in layer and len(layer["ue"]) == 8
+
+
+@pytest.mark.parametrize("summary, expect", [
+    ({"num_bs": 4, "serving_bs": [0, 2]}, [True, False, True, False]),
+    ({"num_bs": 3, "serving_bs": [0, 1, 2]}, [True, True, True]),
+    ({"num_bs": 4, "serving_bs": None}, None),       # no choice among candidates: alike
+    ({"num_bs": 4}, None),                           # a summary written before the field
+    ({"num_bs": 4, "serving_bs": [0, 4]}, None),     # not an id of the run's BSs
+    ({"num_bs": 4, "serving_bs": [0, -1]}, None),
+    ({"num_bs": 4, "serving_bs": [True]}, None),     # JSON true is no id
+    ({"num_bs": 4, "serving_bs": [1.0]}, None),
+    ({"num_bs": "4", "serving_bs": [1]}, None),
+    ([1, 2], None),
+])
+def test_serving_flags_follow_the_folders_propagation_summary(tmp_path, summary, expect):
+    """The polled state's ``serving``: one flag per BS from the summary's ``serving_bs`` ids
+    (None before the file exists, and whenever its ids are not ids of its ``num_bs`` BSs);
+    read again when the file is replaced."""
+    view = RunFolderState(tmp_path)
+    assert view.state()["serving"] is None
+    path = tmp_path / "propagation_summary.json"
+    path.write_text(json.dumps(summary))
+    assert view.state()["serving"] == expect
+    path.unlink()
+    path.write_text(json.dumps({"num_bs": 2, "serving_bs": [1], "pad": "x" * 40}))
+    assert view.state()["serving"] == [False, True]

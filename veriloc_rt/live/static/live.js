@@ -258,21 +258,44 @@ function drawMap() {
       ctx.beginPath(); ctx.arc(X(adv[cur][0]), Y(adv[cur][1]), 5, 0, 7); ctx.fill(); ctx.stroke();
     }
   }
-  // BSs
+  // BSs: once a run that chose among candidate sites has chosen (st.serving, one flag per BS),
+  // the serving ones filled and labelled, the candidates no point chose hollow and gray (as the
+  // run's maps draw them); else every BS alike
   ctx.font = "12px system-ui";
+  const serving = servingMask();
   (scene.bs || []).forEach((b, j) => {
     const x = X(b[0]), y = Y(b[1]);
-    ctx.fillStyle = "#c62828"; ctx.strokeStyle = "#1d2330"; ctx.lineWidth = 1;
     ctx.beginPath(); ctx.moveTo(x, y - 8); ctx.lineTo(x + 7, y + 5); ctx.lineTo(x - 7, y + 5); ctx.closePath();
+    if (serving && !serving[j]) {
+      ctx.strokeStyle = "#595959"; ctx.lineWidth = 1.5; ctx.stroke();
+      return;
+    }
+    ctx.fillStyle = "#c62828"; ctx.strokeStyle = "#1d2330"; ctx.lineWidth = 1;
     ctx.fill(); ctx.stroke();
     ctx.fillStyle = "#1d2330"; ctx.fillText("BS" + j, x + 8, y - 6);
   });
+  renderBsLegend(serving);
   // scale bar
   const len = [10, 20, 50, 100, 200, 500, 1000].find(m => m * k > 60) || 1000;
   ctx.strokeStyle = "#1d2330"; ctx.lineWidth = 2;
   ctx.beginPath(); ctx.moveTo(12, h - 14); ctx.lineTo(12 + len * k, h - 14); ctx.stroke();
   ctx.fillStyle = "#1d2330"; ctx.fillText(len + " m", 14, h - 20);
   canvas.dataset.drawn = String(n);
+}
+
+// the serving flags of the last poll when they are the map's BSs' (null: every BS alike)
+function servingMask() {
+  const m = lastState && lastState.serving;
+  return Array.isArray(m) && scene && scene.bs && m.length === scene.bs.length ? m : null;
+}
+
+// the map's legend of the BSs: with serving flags their counts and the unused candidates' key
+function renderBsLegend(serving) {
+  const used = serving ? serving.filter(Boolean).length : 0;
+  document.getElementById("legend-bs").textContent = serving ? "serving BSs (" + used + ")" : "BS";
+  const unused = document.getElementById("legend-unused");
+  unused.hidden = !serving || used === serving.length;
+  if (serving) document.getElementById("legend-unused-count").textContent = String(serving.length - used);
 }
 
 function renderDecisions(st) {
