@@ -16,6 +16,12 @@ The shortcuts, by name:
 * ``noise32``: the UE's thermal noise from single-precision normals
   (``Generator.standard_normal(dtype=float32)``, scaled in float64:
   :func:`~veriloc_rt.phy.channel.draw_grid_noise_on`), other draws from the same N(0, 1).
+* ``ulnoise``: the serving BSs' thermal noise in the uplink drawn only on the REs their receiver
+  reads (the SRS's REs, which its cross-spectra read, and every RE of the symbols its noise
+  estimate reads), frequency domain
+  (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`). A name of its own, not ``noise``
+  extended: ``VERILOC_RT_REFERENCE=noise`` keeps giving the files it gave before, and each
+  shortcut's equivalence report tests that shortcut alone.
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -31,7 +37,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise")
 
 
 def reference(name: str) -> bool:

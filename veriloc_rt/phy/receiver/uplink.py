@@ -3,10 +3,11 @@
 The UE transmits its SRS-like reference (:func:`veriloc_rt.phy.nr.srs.srs_grid`) from one antenna
 at the array centre; each serving BS receives it through the reciprocal of its downlink CIR
 (same delays and Doppler, the UE's single-antenna gain: :meth:`Links.uplink_from_cir`) with its
-own thermal noise, and times it with the same ToA estimator as the UE. The BSs are synchronised
-but the UE's transmit time is unknown, so the arrival-time differences ``toa_j - toa_0`` are
-uplink TDOAs with exactly the algebra of DL RSTDs and go to the same
-:class:`~veriloc_rt.phy.receiver.multilateration.Multilaterator`.
+own thermal noise (frequency domain: drawn only on the REs the receiver reads, the shortcut
+``ulnoise`` of :mod:`veriloc_rt.phy.shortcuts`), and times it with the same ToA estimator as
+the UE. The BSs are synchronised but the UE's transmit time is unknown, so the arrival-time
+differences ``toa_j - toa_0`` are uplink TDOAs with exactly the algebra of DL RSTDs and go to
+the same :class:`~veriloc_rt.phy.receiver.multilateration.Multilaterator`.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, re_amplitude,
                        receiver_noise_variance)
 from ..noise import NoiseSource, WhiteNoise
+from ..shortcuts import reference
 from ...config.channel import ChannelConfig, ReceiverConfig
 from ...config.nr import NRConfig
 from ..nr.ofdm import OFDM
@@ -56,6 +58,13 @@ class UplinkPositioner:
     :param receiver: receiver config (SRS parameters, ToA rule, thresholds)
     :param noise: the BSs' noise source (default :class:`~veriloc_rt.phy.noise.WhiteNoise`, from
         the call's generator)
+
+    In the frequency domain the noise source is told the REs the receiver reads
+    (:attr:`read`: the SRS's REs and every RE of the symbols outside ``receiver.srs_symbols``,
+    which :func:`~veriloc_rt.phy.receiver.sync.noise_variance` reads), and a
+    :class:`~veriloc_rt.phy.noise.WhiteNoise` draws it on those alone, in the reference's order
+    of draws (the shortcut ``ulnoise``), unless ``VERILOC_RT_REFERENCE`` names it when the
+    positioner is built.
     """
 
     def __init__(self, nr: NRConfig, channel: ChannelConfig, receiver: ReceiverConfig,
@@ -74,9 +83,18 @@ class UplinkPositioner:
         window = min(receiver.search_window_s, 0.9 * period - channel.timing_guard_s)
         self.toa = ToAEstimator(replace(receiver, search_window_s=window), channel.timing_guard_s)
         self.noise_var = receiver_noise_variance(channel, self.ofdm.sample_rate_hz, channel.bs_noise_figure_db)
+        #: [S, 14, K] bool, the REs the receiver reads (frequency domain, the shortcut
+        #: ``ulnoise``), else None (noise on every RE)
+        self.read = None
+        if channel.domain == "frequency" and not reference("ulnoise"):
+            read = self.occupied.copy()
+            read[:, [s for s in range(read.shape[1]) if s not in set(receiver.srs_symbols)]] = True
+            read.flags.writeable = False
+            self.read = read
 
     def receive(self, link: Links, t0: float, rng: np.random.Generator) -> np.ndarray:
-        """One BS's received signal: grid [1, S, 14, K] (frequency) or IQ [1, N] (time)."""
+        """One BS's received signal: grid [1, S, 14, K] (frequency) or IQ [1, N] (time); with
+        :attr:`read`, the grid's other REs hold the signal without noise."""
         amp = re_amplitude([dbm_to_watt(self.channel.ue_power_dbm)], self.ofdm)
         if self.channel.domain == "frequency":
             y = apply_frequency(link, self.grid[None], amp, self.ofdm, self.slots, t0, self.occupied[None])
@@ -84,7 +102,7 @@ class UplinkPositioner:
             n = self.waveform.shape[-1] + int(np.ceil(self.receiver.search_window_s * self.ofdm.sample_rate_hz)) + 64
             dec = max(1, min(self.channel.time_decimation, self.ofdm.fft_size // self.nr.min_fft_size))
             y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n, dec)
-        return self.noise(y, self.noise_var, rng)
+        return self.noise.add_on_read(y, self.noise_var, rng, self.read)
 
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
                  rng: np.random.Generator, solve=None) -> UplinkResult:
