@@ -63,8 +63,14 @@ class UplinkPositioner:
     (:attr:`read`: the SRS's REs and every RE of the symbols outside ``receiver.srs_symbols``,
     which :func:`~veriloc_rt.phy.receiver.sync.noise_variance` reads), and a
     :class:`~veriloc_rt.phy.noise.WhiteNoise` draws it on those alone, in the reference's order
-    of draws (the shortcut ``ulnoise``), unless ``VERILOC_RT_REFERENCE`` names it when the
-    positioner is built.
+    of draws (the shortcut ``ulnoise``). With a :class:`~veriloc_rt.phy.noise.WhiteNoise` the
+    noise estimate is drawn from its distribution instead (the shortcut ``ulnoisevar``): those
+    symbols hold the noise alone (the SRS and, per RE, its channel leave them empty; no
+    adversary reaches the uplink), so the mean of ``|n|^2`` over their M REs, i.i.d. CN(0,
+    sigma^2), is Gamma(M, sigma^2 / M) (the sum of M exponentials of mean sigma^2), one draw
+    from the call's generator after the BS's noise, and :attr:`read` is the SRS's REs alone.
+    Each shortcut is left out when ``VERILOC_RT_REFERENCE`` names it when the positioner is
+    built.
     """
 
     def __init__(self, nr: NRConfig, channel: ChannelConfig, receiver: ReceiverConfig,
@@ -83,12 +89,18 @@ class UplinkPositioner:
         window = min(receiver.search_window_s, 0.9 * period - channel.timing_guard_s)
         self.toa = ToAEstimator(replace(receiver, search_window_s=window), channel.timing_guard_s)
         self.noise_var = receiver_noise_variance(channel, self.ofdm.sample_rate_hz, channel.bs_noise_figure_db)
+        #: the symbols (0..13) the noise estimate averages: those outside ``srs_symbols``
+        self.free = tuple(s for s in range(self.grid.shape[1]) if s not in set(receiver.srs_symbols))
+        #: the noise estimate drawn from its distribution (the shortcut ``ulnoisevar``)
+        self.direct_variance = (channel.domain == "frequency" and bool(self.free)
+                                and type(self.noise) is WhiteNoise and not reference("ulnoisevar"))
         #: [S, 14, K] bool, the REs the receiver reads (frequency domain, the shortcut
         #: ``ulnoise``), else None (noise on every RE)
         self.read = None
         if channel.domain == "frequency" and not reference("ulnoise"):
             read = self.occupied.copy()
-            read[:, [s for s in range(read.shape[1]) if s not in set(receiver.srs_symbols)]] = True
+            if not self.direct_variance:
+                read[:, list(self.free)] = True
             read.flags.writeable = False
             self.read = read
 
@@ -133,7 +145,12 @@ class UplinkPositioner:
             else:
                 cs = time_cross_spectra(y, self.grid, self.ofdm, self.slots, self.channel.timing_guard_s,
                                         self.toa.cfg.search_window_s)
-            nv = noise_variance(grid, busy)
+            if self.direct_variance and self.noise_var > 0:
+                # the mean of |n|^2 over the free symbols' M REs (noise_variance's), drawn
+                m = grid.shape[0] * grid.shape[1] * len(self.free) * grid.shape[-1]
+                nv = float(rng.gamma(m, self.noise_var / m))
+            else:
+                nv = noise_variance(grid, busy)
             est = self.toa(cs, nv if np.isfinite(nv) else self.noise_var)
             det[j], snr[j] = est.detected, est.peak_snr_db
             toa[j] = t0 + est.toa_s if est.detected else np.nan

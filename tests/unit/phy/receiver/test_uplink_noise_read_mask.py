@@ -1,9 +1,11 @@
-"""The shortcut ``ulnoise`` (the BSs' uplink noise drawn only on the REs their receiver reads)
-is exact: the uplink receiver reads no RE left without noise, and the draws on the read REs are
-the reference's order of draws."""
+"""The shortcuts ``ulnoise`` (the BSs' uplink noise drawn only on the REs their receiver reads)
+and ``ulnoisevar`` (the receiver's noise estimate drawn from its distribution) are exact: the
+uplink receiver reads no RE left without noise, the draws on the read REs are the reference's
+order of draws, and the drawn estimate has the distribution of the reference's."""
 
 import numpy as np
 import pytest
+from scipy import stats
 
 import veriloc_rt.phy.noise as noise_mod
 from veriloc_rt.config import config_from_dict
@@ -39,44 +41,54 @@ def _link() -> Links:
 
 def test_reference_switch(monkeypatch):
     monkeypatch.delenv(ENV, raising=False)
-    assert not reference("ulnoise")
+    assert not reference("ulnoise") and not reference("ulnoisevar")
     for env in ("ulnoise", "noise,ulnoise", "all"):
         monkeypatch.setenv(ENV, env)
         assert reference("ulnoise")
-    monkeypatch.setenv(ENV, "noise")   # the UE's shortcut alone: the uplink's stays on
-    assert not reference("ulnoise")
+    monkeypatch.setenv(ENV, "noise")   # the UE's shortcut alone: the uplink's stay on
+    assert not reference("ulnoise") and not reference("ulnoisevar")
+    monkeypatch.setenv(ENV, "ulnoisevar")
+    assert reference("ulnoisevar") and not reference("ulnoise")
 
 
 def test_read_mask_is_the_srs_and_the_noise_estimate_symbols(monkeypatch):
-    """The mask, derived independently: every RE of the symbols outside ``srs_symbols`` (what
-    ``noise_variance`` averages), and on the SRS symbols the comb's REs (``grid != 0``); the
-    reference path (``VERILOC_RT_REFERENCE=ulnoise``) has no mask."""
-    p = _positioner(monkeypatch, None)
+    """The mask, derived independently: on the SRS symbols the comb's REs (``grid != 0``), and,
+    with the noise estimate from the grid (``VERILOC_RT_REFERENCE=ulnoisevar``), every RE of the
+    symbols outside ``srs_symbols`` (what ``noise_variance`` averages); the estimate drawn
+    directly (default), those are not read. The reference path (``ulnoise``) has no mask, nor
+    has the time domain."""
+    p = _positioner(monkeypatch, "ulnoisevar")
+    assert not p.direct_variance
     rx = p.receiver
     s, _, k = p.grid.shape
-    expect = np.zeros((s, 14, k), dtype=bool)
-    for sym in range(14):
-        if sym not in rx.srs_symbols:
-            expect[:, sym] = True
-        else:   # the comb: every srs_comb-th subcarrier from one offset
-            row = p.grid[0, sym] != 0
-            off = int(np.flatnonzero(row)[0])
-            assert off < rx.srs_comb and np.array_equal(np.flatnonzero(row), np.arange(off, k, rx.srs_comb))
-            expect[:, sym, off::rx.srs_comb] = True
+    srs = np.zeros((s, 14, k), dtype=bool)
+    for sym in rx.srs_symbols:   # the comb: every srs_comb-th subcarrier from one offset
+        row = p.grid[0, sym] != 0
+        off = int(np.flatnonzero(row)[0])
+        assert off < rx.srs_comb and np.array_equal(np.flatnonzero(row), np.arange(off, k, rx.srs_comb))
+        srs[:, sym, off::rx.srs_comb] = True
+    expect = srs.copy()
+    expect[:, [sym for sym in range(14) if sym not in rx.srs_symbols]] = True
     assert np.array_equal(p.read, expect) and not p.read.flags.writeable
     assert 0.0 < p.read.mean() < 1.0
+    d = _positioner(monkeypatch, None)
+    assert d.direct_variance and np.array_equal(d.read, srs) and not d.read.flags.writeable
     assert _positioner(monkeypatch, "ulnoise").read is None
     monkeypatch.setenv(ENV, "all")
     cfg = config_from_dict({**UMA, "channel": {"domain": "time"}})
     assert UplinkPositioner(cfg.nr, cfg.channel, cfg.receiver).read is None   # IQ: every sample
+    monkeypatch.delenv(ENV)
+    t = UplinkPositioner(cfg.nr, cfg.channel, cfg.receiver)
+    assert t.read is None and not t.direct_variance
 
 
-def test_received_grid_draws_in_the_reference_order(monkeypatch):
+@pytest.mark.parametrize("env", [None, "ulnoisevar"])
+def test_received_grid_draws_in_the_reference_order(monkeypatch, env):
     """With the shortcut, a BS's grid is the signal plus one normal pair per read RE, filled in
     slot, symbol, subcarrier order (derived here from the generator directly), the signal alone
     elsewhere; on the reference path, the signal plus ``draw_noise`` over every RE, slot-major:
     the reference's bits."""
-    p = _positioner(monkeypatch, None)
+    p = _positioner(monkeypatch, env)
     link, t0 = _link(), 1.0e-6
     amp = re_amplitude([dbm_to_watt(p.channel.ue_power_dbm)], p.ofdm)
     signal = apply_frequency(link, p.grid[None], amp, p.ofdm, p.slots, t0, p.occupied[None])
@@ -106,6 +118,54 @@ def test_a_source_that_overrides_the_call_gets_every_re(monkeypatch):
     p = UplinkPositioner(cfg.nr, cfg.channel, cfg.receiver, src)
     y = p.receive(_link(), 1.0e-6, np.random.default_rng(3))
     assert src.seen == y.shape and np.all(y != 0)
+
+
+def _estimates(p: UplinkPositioner, seed: int, calls: int) -> np.ndarray:
+    """The noise estimate the positioner's ToA estimator gets, one BS (no paths: noise alone),
+    ``calls`` calls from one generator."""
+    seen = []
+    real = p.toa
+
+    class Recorder:
+        cfg = real.cfg
+
+        def __call__(self, cs, nv):
+            seen.append(nv)
+            return real(cs, nv)
+
+    p.toa = Recorder()
+    empty = Links(np.zeros((1, 1)), np.zeros((1, 1, 1), complex), np.zeros((1, 1)), np.zeros((1, 1), bool))
+    rng = np.random.default_rng(seed)
+    for _ in range(calls):
+        p([empty], np.zeros((1, 3)), 1.5, rng)
+    return np.array(seen)
+
+
+def test_drawn_noise_estimate_follows_the_generator_and_the_reference_distribution(monkeypatch):
+    """Directly drawn (default), the estimate is ``Gamma(M, sigma^2 / M)`` from the call's
+    generator right after the BS's noise on the SRS REs (derived here from the generator), M the
+    REs ``noise_variance`` averages (1 antenna x slots x free symbols x subcarriers). Its
+    distribution is the reference's (``noise_variance`` of a drawn grid): 400 estimates of
+    each have mean sigma^2 and standard deviation sigma^2 / sqrt(M) within 4 standard errors
+    (a factor sqrt(2) in M, e.g. counting the SRS symbols too, moves the deviation 12 of them),
+    and a two-sample KS test does not tell them apart at 1 %."""
+    d = _positioner(monkeypatch, None)
+    r = _positioner(monkeypatch, "ulnoisevar")
+    s, _, k = d.grid.shape
+    m = s * len(d.free) * k
+    assert len(d.free) == 14 - len(d.receiver.srs_symbols) and m == r.read[:, list(d.free)].sum()
+    got = _estimates(d, 21, 3)
+    rng = np.random.default_rng(21)
+    for nv in got:
+        rng.standard_normal((int(d.read.sum()), 2))   # the BS's noise on the SRS REs
+        assert nv == rng.gamma(m, d.noise_var / m)
+    n = 400
+    a, b = _estimates(d, 22, n) / d.noise_var, _estimates(r, 23, n) / r.noise_var
+    sd = 1 / np.sqrt(m)
+    for x in (a, b):
+        assert abs(x.mean() - 1) < 4 * sd / np.sqrt(n)
+        assert abs(x.std(ddof=1) / sd - 1) < 4 / np.sqrt(2 * (n - 1))
+    assert stats.ks_2samp(a, b).pvalue > 0.01
 
 
 def _uplinks(cfg_dict, tmp_path, fill, masks):
@@ -143,12 +203,17 @@ def _uplinks(cfg_dict, tmp_path, fill, masks):
 
 
 @pytest.mark.heavy
+@pytest.mark.parametrize("env", [None, "ulnoisevar"], ids=["default", "estimate-from-grid"])
 @pytest.mark.parametrize("cfg", [UMA, UMA9], ids=["uma-3trps", "uma-9trps"])
-def test_no_uplink_stage_reads_an_re_left_without_noise(cfg, tmp_path, monkeypatch):
+def test_no_uplink_stage_reads_an_re_left_without_noise(cfg, env, tmp_path, monkeypatch):
     """The uplink results (timing, detection, SNR, the UL fix) with NaN, or a value 1e4 noise
     sigmas large, on the REs left without noise equal those with 0 there bit for bit (any read
-    of such an RE would move a statistic: NaN propagates through every sum)."""
-    monkeypatch.delenv(ENV, raising=False)
+    of such an RE would move a statistic: NaN propagates through every sum); by default the
+    symbols of the noise estimate are among them (its estimate drawn directly)."""
+    if env is None:
+        monkeypatch.delenv(ENV, raising=False)
+    else:
+        monkeypatch.setenv(ENV, env)
     masks: list = []
     base = _uplinks(cfg, tmp_path / "zero", 0.0, masks)
     assert base and masks and max(masks) < 1.0   # the shortcut ran on the uplink, left REs out
