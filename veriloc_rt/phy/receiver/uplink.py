@@ -116,6 +116,16 @@ class UplinkPositioner:
             y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n, dec)
         return self.noise.add_on_read(y, self.noise_var, rng, self.read)
 
+    def noise_estimate(self, grid: np.ndarray, rng: np.random.Generator) -> float:
+        """The per-RE noise variance of a BS's received grid [A, S, 14, K] the ToA estimator is
+        given: :func:`~veriloc_rt.phy.receiver.sync.noise_variance` over the symbols without
+        SRS, or (:attr:`direct_variance`, the shortcut ``ulnoisevar``) its value drawn from its
+        distribution, Gamma(M, sigma^2 / M) for M REs, one draw from ``rng``."""
+        if self.direct_variance and self.noise_var > 0:
+            m = grid.shape[0] * grid.shape[1] * len(self.free) * grid.shape[-1]
+            return float(rng.gamma(m, self.noise_var / m))
+        return noise_variance(grid, tuple(self.receiver.srs_symbols))
+
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
                  rng: np.random.Generator, solve=None) -> UplinkResult:
         """Time the SRS at every BS and solve the UL position.
@@ -132,7 +142,6 @@ class UplinkPositioner:
                              "must have one entry per BS")
         firsts = np.array([lk.first_delay()[0] for lk in uplinks])
         t0 = float(np.nanmin(firsts) - self.channel.timing_guard_s) if np.any(np.isfinite(firsts)) else 0.0
-        busy = tuple(self.receiver.srs_symbols)
         n_bs = len(uplinks)
         det = np.zeros(n_bs, dtype=bool)
         toa = np.full(n_bs, np.nan)
@@ -145,12 +154,7 @@ class UplinkPositioner:
             else:
                 cs = time_cross_spectra(y, self.grid, self.ofdm, self.slots, self.channel.timing_guard_s,
                                         self.toa.cfg.search_window_s)
-            if self.direct_variance and self.noise_var > 0:
-                # the mean of |n|^2 over the free symbols' M REs (noise_variance's), drawn
-                m = grid.shape[0] * grid.shape[1] * len(self.free) * grid.shape[-1]
-                nv = float(rng.gamma(m, self.noise_var / m))
-            else:
-                nv = noise_variance(grid, busy)
+            nv = self.noise_estimate(grid, rng)
             est = self.toa(cs, nv if np.isfinite(nv) else self.noise_var)
             det[j], snr[j] = est.detected, est.peak_snr_db
             toa[j] = t0 + est.toa_s if est.detected else np.nan
