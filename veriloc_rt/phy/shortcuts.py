@@ -16,6 +16,16 @@ The shortcuts, by name:
 * ``noise32``: the UE's thermal noise from single-precision normals
   (``Generator.standard_normal(dtype=float32)``, scaled in float64:
   :func:`~veriloc_rt.phy.channel.draw_grid_noise_on`), other draws from the same N(0, 1).
+* ``ulnoise``: the serving BSs' thermal noise in the uplink drawn only on the REs their receiver
+  reads (the SRS's REs, which its cross-spectra read, and every RE of the symbols its noise
+  estimate reads), frequency domain
+  (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`). A name of its own, not ``noise``
+  extended: ``VERILOC_RT_REFERENCE=noise`` keeps giving the files it gave before, and each
+  shortcut's equivalence report tests that shortcut alone.
+* ``ulnoisevar``: the uplink receiver's noise estimate (the mean of ``|Y|^2`` over the symbols
+  without SRS, noise alone there) drawn directly from its distribution, Gamma(M, sigma^2 / M)
+  for M REs of i.i.d. CN(0, sigma^2), instead of from M drawn REs; those REs are then not
+  drawn (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`).
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -31,7 +41,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar")
 
 
 def reference(name: str) -> bool:

@@ -3,10 +3,11 @@
 The UE transmits its SRS-like reference (:func:`veriloc_rt.phy.nr.srs.srs_grid`) from one antenna
 at the array centre; each serving BS receives it through the reciprocal of its downlink CIR
 (same delays and Doppler, the UE's single-antenna gain: :meth:`Links.uplink_from_cir`) with its
-own thermal noise, and times it with the same ToA estimator as the UE. The BSs are synchronised
-but the UE's transmit time is unknown, so the arrival-time differences ``toa_j - toa_0`` are
-uplink TDOAs with exactly the algebra of DL RSTDs and go to the same
-:class:`~veriloc_rt.phy.receiver.multilateration.Multilaterator`.
+own thermal noise (frequency domain: drawn only on the REs the receiver reads, the shortcut
+``ulnoise`` of :mod:`veriloc_rt.phy.shortcuts`), and times it with the same ToA estimator as
+the UE. The BSs are synchronised but the UE's transmit time is unknown, so the arrival-time
+differences ``toa_j - toa_0`` are uplink TDOAs with exactly the algebra of DL RSTDs and go to
+the same :class:`~veriloc_rt.phy.receiver.multilateration.Multilaterator`.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, re_amplitude,
                        receiver_noise_variance)
 from ..noise import NoiseSource, WhiteNoise
+from ..shortcuts import reference
 from ...config.channel import ChannelConfig, ReceiverConfig
 from ...config.nr import NRConfig
 from ..nr.ofdm import OFDM
@@ -56,6 +58,19 @@ class UplinkPositioner:
     :param receiver: receiver config (SRS parameters, ToA rule, thresholds)
     :param noise: the BSs' noise source (default :class:`~veriloc_rt.phy.noise.WhiteNoise`, from
         the call's generator)
+
+    In the frequency domain the noise source is told the REs the receiver reads
+    (:attr:`read`: the SRS's REs and every RE of the symbols outside ``receiver.srs_symbols``,
+    which :func:`~veriloc_rt.phy.receiver.sync.noise_variance` reads), and a
+    :class:`~veriloc_rt.phy.noise.WhiteNoise` draws it on those alone, in the reference's order
+    of draws (the shortcut ``ulnoise``). With a :class:`~veriloc_rt.phy.noise.WhiteNoise` the
+    noise estimate is drawn from its distribution instead (the shortcut ``ulnoisevar``): those
+    symbols hold the noise alone (the SRS and, per RE, its channel leave them empty; no
+    adversary reaches the uplink), so the mean of ``|n|^2`` over their M REs, i.i.d. CN(0,
+    sigma^2), is Gamma(M, sigma^2 / M) (the sum of M exponentials of mean sigma^2), one draw
+    from the call's generator after the BS's noise, and :attr:`read` is the SRS's REs alone.
+    Each shortcut is left out when ``VERILOC_RT_REFERENCE`` names it when the positioner is
+    built.
     """
 
     def __init__(self, nr: NRConfig, channel: ChannelConfig, receiver: ReceiverConfig,
@@ -74,9 +89,24 @@ class UplinkPositioner:
         window = min(receiver.search_window_s, 0.9 * period - channel.timing_guard_s)
         self.toa = ToAEstimator(replace(receiver, search_window_s=window), channel.timing_guard_s)
         self.noise_var = receiver_noise_variance(channel, self.ofdm.sample_rate_hz, channel.bs_noise_figure_db)
+        #: the symbols (0..13) the noise estimate averages: those outside ``srs_symbols``
+        self.free = tuple(s for s in range(self.grid.shape[1]) if s not in set(receiver.srs_symbols))
+        #: the noise estimate drawn from its distribution (the shortcut ``ulnoisevar``)
+        self.direct_variance = (channel.domain == "frequency" and bool(self.free)
+                                and type(self.noise) is WhiteNoise and not reference("ulnoisevar"))
+        #: [S, 14, K] bool, the REs the receiver reads (frequency domain, the shortcut
+        #: ``ulnoise``), else None (noise on every RE)
+        self.read = None
+        if channel.domain == "frequency" and not reference("ulnoise"):
+            read = self.occupied.copy()
+            if not self.direct_variance:
+                read[:, list(self.free)] = True
+            read.flags.writeable = False
+            self.read = read
 
     def receive(self, link: Links, t0: float, rng: np.random.Generator) -> np.ndarray:
-        """One BS's received signal: grid [1, S, 14, K] (frequency) or IQ [1, N] (time)."""
+        """One BS's received signal: grid [1, S, 14, K] (frequency) or IQ [1, N] (time); with
+        :attr:`read`, the grid's other REs hold the signal without noise."""
         amp = re_amplitude([dbm_to_watt(self.channel.ue_power_dbm)], self.ofdm)
         if self.channel.domain == "frequency":
             y = apply_frequency(link, self.grid[None], amp, self.ofdm, self.slots, t0, self.occupied[None])
@@ -84,7 +114,17 @@ class UplinkPositioner:
             n = self.waveform.shape[-1] + int(np.ceil(self.receiver.search_window_s * self.ofdm.sample_rate_hz)) + 64
             dec = max(1, min(self.channel.time_decimation, self.ofdm.fft_size // self.nr.min_fft_size))
             y = apply_time(link, self.waveform[None], amp, self.ofdm.sample_rate_hz, t0, n, dec)
-        return self.noise(y, self.noise_var, rng)
+        return self.noise.add_on_read(y, self.noise_var, rng, self.read)
+
+    def noise_estimate(self, grid: np.ndarray, rng: np.random.Generator) -> float:
+        """The per-RE noise variance of a BS's received grid [A, S, 14, K] the ToA estimator is
+        given: :func:`~veriloc_rt.phy.receiver.sync.noise_variance` over the symbols without
+        SRS, or (:attr:`direct_variance`, the shortcut ``ulnoisevar``) its value drawn from its
+        distribution, Gamma(M, sigma^2 / M) for M REs, one draw from ``rng``."""
+        if self.direct_variance and self.noise_var > 0:
+            m = grid.shape[0] * grid.shape[1] * len(self.free) * grid.shape[-1]
+            return float(rng.gamma(m, self.noise_var / m))
+        return noise_variance(grid, tuple(self.receiver.srs_symbols))
 
     def __call__(self, uplinks: list[Links], bs_pos: np.ndarray, ue_height_m: float,
                  rng: np.random.Generator, solve=None) -> UplinkResult:
@@ -102,7 +142,6 @@ class UplinkPositioner:
                              "must have one entry per BS")
         firsts = np.array([lk.first_delay()[0] for lk in uplinks])
         t0 = float(np.nanmin(firsts) - self.channel.timing_guard_s) if np.any(np.isfinite(firsts)) else 0.0
-        busy = tuple(self.receiver.srs_symbols)
         n_bs = len(uplinks)
         det = np.zeros(n_bs, dtype=bool)
         toa = np.full(n_bs, np.nan)
@@ -115,7 +154,7 @@ class UplinkPositioner:
             else:
                 cs = time_cross_spectra(y, self.grid, self.ofdm, self.slots, self.channel.timing_guard_s,
                                         self.toa.cfg.search_window_s)
-            nv = noise_variance(grid, busy)
+            nv = self.noise_estimate(grid, rng)
             est = self.toa(cs, nv if np.isfinite(nv) else self.noise_var)
             det[j], snr[j] = est.detected, est.peak_snr_db
             toa[j] = t0 + est.toa_s if est.detected else np.nan
