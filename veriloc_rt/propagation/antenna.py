@@ -54,7 +54,7 @@ from .cir import CIR
 
 __all__ = ["ElementPattern", "SectorPanel", "element_pattern_db", "column_array_factor",
            "apply_sectors", "sector_boresights", "site_first_boresight", "panel_of",
-           "apply_bs_antenna", "describe_bs_antenna", "TR38901_ELEMENT",
+           "apply_bs_antenna", "bs_antenna_links", "sector_setup", "describe_bs_antenna", "TR38901_ELEMENT",
            "TABLE_7_8_1_FIRST_BORESIGHT_DEG", "HEX_CELL_DIRECTION_DEG"]
 
 #: TR 38.901 Table 7.8-1 sector boresights 30, 150, 270 deg: the first (a sites CSV without
@@ -195,6 +195,22 @@ def panel_of(topology) -> SectorPanel | None:
                        tilt_deg=topology.bs_antenna_tilt_deg)
 
 
+def sector_setup(geometry, topology) -> tuple[SectorPanel, np.ndarray] | None:
+    """The panel of ``topology`` and its sectors' boresights at ``geometry``'s sites
+    (:func:`sector_boresights`), None for isotropic BS antennas."""
+    panel = panel_of(topology)
+    if panel is None:
+        return None
+    return panel, sector_boresights(site_first_boresight(geometry), topology.sectors)
+
+
+def bs_antenna_links(bs_ue: CIR, geometry, topology) -> CIR:
+    """The BS -> UE CIRs ``bs_ue`` through ``topology``'s BS antennas, each link its site's
+    strongest sector, as :func:`apply_bs_antenna` applies them; isotropic: ``bs_ue`` itself."""
+    setup = sector_setup(geometry, topology)
+    return bs_ue if setup is None else apply_sectors(bs_ue, *setup)[0]
+
+
 def apply_bs_antenna(prop, geometry, topology):
     """``prop`` (a :class:`~veriloc_rt.propagation.raytrace.Propagation`) with the BS antennas
     of ``topology`` applied to the links that leave a BS (BS -> UE, BS -> adversary:
@@ -202,10 +218,10 @@ def apply_bs_antenna(prop, geometry, topology):
     adversary's own links (adversary -> UE) keep its antenna. Isotropic BS antennas return
     ``prop`` itself (bit for bit).
     """
-    panel = panel_of(topology)
-    if panel is None:
+    setup = sector_setup(geometry, topology)
+    if setup is None:
         return prop
-    bore = sector_boresights(site_first_boresight(geometry), topology.sectors)
+    panel, bore = setup
     bs_ue, sec_ue = apply_sectors(prop.bs_ue, panel, bore)
     bs_adv, _ = apply_sectors(prop.bs_adv, panel, bore)
     used = sec_ue[sec_ue >= 0]

@@ -63,7 +63,7 @@ from ..world.geometry import build_geometry
 from ..sim.engine import traced_power_serving
 from .timing import timed_trace
 from ..sim.run_folder import run_keys
-from ..propagation.antenna import apply_sectors, panel_of, sector_boresights, site_first_boresight
+from ..propagation.antenna import bs_antenna_links
 from ..propagation.stochastic import uma_propagation
 from ..report.plots import plot_pareto
 
@@ -408,13 +408,8 @@ def _trace(cfg: Config, geometry, points: np.ndarray, repeats: int = 2):
 
 def with_bs_antenna(bs_ue, cfg: Config, geometry):
     """The BS -> UE CIRs ``bs_ue`` through ``cfg.topology``'s BS antennas, as a run applies them
-    (:func:`~veriloc_rt.propagation.antenna.apply_bs_antenna`: each link its site's strongest
-    sector); isotropic antennas: ``bs_ue`` itself."""
-    panel = panel_of(cfg.topology)
-    if panel is None:
-        return bs_ue
-    bore = sector_boresights(site_first_boresight(geometry), cfg.topology.sectors)
-    return apply_sectors(bs_ue, panel, bore)[0]
+    (:func:`~veriloc_rt.propagation.antenna.bs_antenna_links`); isotropic: ``bs_ue`` itself."""
+    return bs_antenna_links(bs_ue, geometry, cfg.topology)
 
 
 def run_bench(cfg: Config, out_dir: str | Path, quick: bool = False, points: int | None = None,
