@@ -144,9 +144,11 @@ class NRLDPC:
         self.n = cols * self.z
         hs = self.h[:, :self.k_full].toarray()
         hp_inv = _gf2_inverse(self.h[:, self.k_full:].toarray())
-        # parity = M s mod 2, as float64 products (BLAS; exact: the sums are integers <= the
-        # parity length); NumPy's integer matrix product has no BLAS and took 25x as long
-        self._encode_matrix = (hp_inv.astype(np.float64) @ hs.astype(np.float64)) % 2.0
+        # parity = M s mod 2 over the k information bits (the fillers are 0), as float32
+        # products (BLAS; exact: the sums are integers <= k <= 3840 < 2^24); NumPy's integer
+        # matrix product has no BLAS and took 25x as long
+        encode_matrix = (hp_inv.astype(np.float64) @ hs.astype(np.float64)) % 2.0
+        self._encode_info = np.ascontiguousarray(encode_matrix[:, :k].T, dtype=np.float32)
         self._skip = _codeword_skip(self.h, self.positions, self.k, self.k_full)
 
     @functools.cached_property
@@ -175,10 +177,10 @@ class NRLDPC:
         bits = np.asarray(bits, dtype=np.uint8)
         if bits.shape[-1] != self.k:
             raise ValueError(f"Argument `bits` must have {self.k} bits on its last axis, not {bits.shape[-1]}")
-        s = np.zeros(bits.shape[:-1] + (self.k_full,), dtype=np.float64)
+        s = np.zeros(bits.shape[:-1] + (self.n,), dtype=np.uint8)
         s[..., :self.k] = bits
-        parity = (s @ self._encode_matrix.T) % 2
-        return np.concatenate([s, parity], axis=-1).astype(np.uint8)
+        s[..., self.k_full:] = (bits.astype(np.float32) @ self._encode_info) % 2
+        return s
 
     def encode(self, bits: np.ndarray) -> np.ndarray:
         """Encode, rate-match and interleave.
