@@ -218,7 +218,7 @@ class MeaconingThreat(Threat):
         fill = self._stand_ins.get(tx)
         if fill is None:
             every = tx.occupied(self.signal.slots)[0]
-            fill = self._stand_ins[tx] = (every, np.flatnonzero(every & ~sig.occupied))
+            fill = self._stand_ins[tx] = (every, np.flatnonzero(every & ~sig.occupied).astype(np.int32))
         if not fill[1].size:
             return sig.grids, sig.occupied
         grids = sig.grids.copy()
