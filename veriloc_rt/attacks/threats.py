@@ -154,7 +154,10 @@ class FBSThreat(Threat):
             g_bs = Links.from_cir(at.bs_ue, at.point).power_gain()
             link = np.array([math.sqrt(g_bs[b] / g_adv) if g_adv > 0 else 0.0 for b, _, _ in reps])
         for (_, delay, grid), g in zip(reps, link):
-            out += (g * grid) * s.delay_ramp(delay)[None, None, :]
+            # (g grid) ramp, in the replica's own array (a copy): no full-grid temporaries
+            np.multiply(g, grid, out=grid)
+            np.multiply(grid, s.delay_ramp(delay)[None, None, :], out=grid)
+            out += grid
         return amp * out
 
 
@@ -245,7 +248,8 @@ class MeaconingThreat(Threat):
         gain = math.sqrt(self.meaconer.power_w / p_in) if p_in > 0 else 0.0
         if cfg.max_gain_db is not None:
             gain = min(gain, 10.0 ** (cfg.max_gain_db / 20.0))
-        return (gain / s.unit) * y * s.delay_ramp(cfg.processing_delay_s)[None, None, :]
+        out = np.multiply(gain / s.unit, y)
+        return np.multiply(out, s.delay_ramp(cfg.processing_delay_s)[None, None, :], out=out)
 
 
 @THREAT_REGISTRY.register("jamming")
