@@ -5,7 +5,9 @@ TS 38.212: base graph 2 (Table 5.3.2-3, shipped as ``data/ldpc_bg2_38212.csv``),
 version 0 (5.4.2.1) and bit interleaving for QPSK (5.4.2.2). Decoding runs belief propagation
 (sum-product or normalised min-sum, flooding schedule) with the ``ldpc`` package (Roffe et al.)
 on the rows of the lifted parity-check matrix that the transmitted bits touch; the extension rows
-whose degree-1 parity bit was never sent carry no information and are left out.
+whose degree-1 parity bit was never sent carry no information and are left out. Words that are
+already codewords on their sent bits are not handed to the package: its output for them is
+known (:meth:`NRLDPC.decode`).
 
 Bit-to-LLR convention: ``llr = log P(b = 0) / P(b = 1)`` (positive means 0).
 """
@@ -195,7 +197,10 @@ class NRLDPC:
 
         A word whose LLRs carry less than ``min_information`` x k bits is not decoded: its bits
         are the hard decisions and ``ok`` is False (BP would spend every iteration on it; see
-        :data:`DECODE_MIN_INFORMATION`).
+        :data:`DECODE_MIN_INFORMATION`). A word whose hard decisions on the sent bits are a
+        codeword's, every sent bit's LLR clear of 0, gets that codeword without running BP:
+        the package would return it, converged, from its first iteration
+        (:func:`_already_codewords`; the output is the same).
 
         :param llr: [..., e] float64, log P(0)/P(1) per transmitted bit
         :return: bits : [..., k] uint8 and ok : [...] bool (all parity checks satisfied)
