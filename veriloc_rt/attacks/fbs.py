@@ -35,6 +35,7 @@ Assumptions (documented choices):
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 
@@ -161,6 +162,14 @@ class FalseBaseStation:
         return FBSPlan(t, d, [(int(i), float(d[i])) for i in idx])
 
 
+@functools.lru_cache(maxsize=8)
+def _spoofer_transmitter(nr: NRConfig, network_tags: bool) -> PRSTransmitter:
+    """The spoofer's transmitter (standard PRS, no tags), made once per waveform: its standard
+    PRS, the same in every frame, is then generated once and kept (its replicas are copies)."""
+    security = SecurityConfig(encrypted=(False,) * nr.num_bs, tag_scheme="none")
+    return PRSTransmitter(nr, security, list(range(nr.num_bs)), network_tags=network_tags)
+
+
 def spoofer_replicas(nr: NRConfig, frame: int, replicas, rng: np.random.Generator, slots=None,
                      tag_fill: str = "random_qpsk", network_tags: bool = True) -> list:
     """Resource grids of the spoofer's replicas: standard (unencrypted) PRS, no valid tag.
@@ -177,8 +186,7 @@ def spoofer_replicas(nr: NRConfig, frame: int, replicas, rng: np.random.Generato
         raise ValueError(f"Argument `tag_fill` must be one of 'random_qpsk', 'none', not {tag_fill!r}")
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"Argument `rng` must be a numpy.random.Generator, not {type(rng).__name__}")
-    security = SecurityConfig(encrypted=(False,) * nr.num_bs, tag_scheme="none")
-    tx = PRSTransmitter(nr, security, list(range(nr.num_bs)), network_tags=network_tags)
+    tx = _spoofer_transmitter(nr, bool(network_tags))
     slots = tx.frame_slots(slots)
     layout = ReLayout.from_config(nr, True) if (tag_fill == "random_qpsk" and network_tags) else None
     out = []

@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 import numpy as np
 
+from ..phy.shortcuts import reference
 from ..phy.channel import (Links, apply_frequency, dbm_to_watt, equal_arrival_powers,
                            occupied_power_factor, re_amplitude, receiver_noise_variance)
 from ..propagation.cir import CIR
@@ -153,7 +154,10 @@ class FBSThreat(Threat):
             g_bs = Links.from_cir(at.bs_ue, at.point).power_gain()
             link = np.array([math.sqrt(g_bs[b] / g_adv) if g_adv > 0 else 0.0 for b, _, _ in reps])
         for (_, delay, grid), g in zip(reps, link):
-            out += (g * grid) * s.delay_ramp(delay)[None, None, :]
+            # (g grid) ramp, in the replica's own array (a copy): no full-grid temporaries
+            np.multiply(g, grid, out=grid)
+            np.multiply(grid, s.delay_ramp(delay)[None, None, :], out=grid)
+            out += grid
         return amp * out
 
 
@@ -164,7 +168,20 @@ class MeaconingThreat(Threat):
     (``meaconing.rx_antenna_gain_dbi``), plus its thermal noise (``meaconing.noise_figure_db``,
     default the UE's), with absolute timing (t0 = 0); then the relay's AGC to
     ``meaconing.power_dbm`` (capped by ``max_gain_db``) and its processing delay as a phase
-    ramp: :func:`veriloc_rt.attacks.meaconing.meacon` done on the grid instead of on IQ."""
+    ramp: :func:`veriloc_rt.attacks.meaconing.meacon` done on the grid instead of on IQ.
+
+    The relay hears every RE, the tags of every slot too; the tags of the slots the UE does not
+    check (frequency domain: the chain's frame leaves them out) reach only the relay's AGC
+    and REs the UE never reads. With the shortcut ``relaytags``
+    (:mod:`veriloc_rt.phy.shortcuts`) those REs carry the stand-in QPSK symbol
+    :data:`STAND_IN` instead of each slot's own tag: the AGC input's power on such an RE,
+    ``abs(h x + n)^2`` with the relay's noise n ~ CN(0, sigma^2) independent of everything,
+    has the same distribution for every unit-modulus x (n is circularly symmetric), so the
+    gain's distribution is unchanged, and the tags of those slots are not computed.
+    """
+
+    #: the relay's stand-in symbol on the tag REs the UE does not check (shortcut ``relaytags``)
+    STAND_IN = complex(1.0, 1.0) / math.sqrt(2.0)
 
     label = "Meaconing"
     shared_by_chains = False
@@ -179,19 +196,50 @@ class MeaconingThreat(Threat):
         nf = cfg.channel.ue_noise_figure_db if mc.noise_figure_db is None else mc.noise_figure_db
         self.noise_var = receiver_noise_variance(cfg.channel, signal.ofdm.sample_rate_hz, nf)
         self.rx_gain = 10.0 ** (mc.rx_antenna_gain_dbi / 20.0)
+        #: the stand-in tags (shortcut ``relaytags``), read when the threat is made
+        self.stand_in = not reference("relaytags")
+        #: by transmitter (a serving set's): (every tag's occupancy, the flat indices of the
+        #: REs it fills and the chain's frame leaves empty)
+        self._stand_ins: dict = {}
+
+    def relayed_frame(self, bs_ids: tuple, frame: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """The grids the relay receives (every RE: every slot's tags) and their occupancy:
+        the chain's frame with every tag, or (``relaytags``) its own frame plus
+        :data:`STAND_IN` on the tag REs it leaves empty.
+
+        :return: (grids [num_bs, S, 14, K] complex128, occupied [num_bs, S, 14, K] bool or None)
+        """
+        chain = self.signal.chain
+        if not self.stand_in:
+            sig = chain.frame_signals(bs_ids, frame, every_tag=True)
+            return sig.grids, sig.occupied
+        sig = chain.frame_signals(bs_ids, frame)
+        if sig.occupied is None:    # occupancy unknown: the reference's frame
+            sig = chain.frame_signals(bs_ids, frame, every_tag=True)
+            return sig.grids, sig.occupied
+        tx = chain.setup(bs_ids).transmitter
+        fill = self._stand_ins.get(tx)
+        if fill is None:
+            every = tx.occupied(self.signal.slots)[0]
+            fill = self._stand_ins[tx] = (every, np.flatnonzero(every & ~sig.occupied).astype(np.int32))
+        if not fill[1].size:
+            return sig.grids, sig.occupied
+        grids = sig.grids.copy()
+        grids.reshape(-1)[fill[1]] = self.STAND_IN
+        return grids, fill[0]
 
     def grid(self, at: AttackPoint, rng: np.random.Generator) -> np.ndarray:
         s = self.signal
         point, bs_ue = at.point, at.bs_ue
         bs_ids = tuple(int(b) for b in bs_ue.tx_index[point])
-        sig = s.chain.frame_signals(bs_ids, at.frame, every_tag=True)   # the relay hears every RE
+        grids, occupied = self.relayed_frame(bs_ids, at.frame)   # the relay hears every RE
         ch = s.cfg.channel
         powers = equal_arrival_powers(Links.from_cir(bs_ue, point).power_gain(),
                                       float(dbm_to_watt(ch.bs_max_power_dbm)), ch.power_control)
-        y = self.rx_gain * apply_frequency(Links.from_cir(at.bs_adv, point), sig.grids,
+        y = self.rx_gain * apply_frequency(Links.from_cir(at.bs_adv, point), grids,
                                            re_amplitude(powers * s.chain.bs_power_factor,
                                                         s.ofdm), s.ofdm,
-                                           s.slots, 0.0, sig.occupied)[0]
+                                           s.slots, 0.0, occupied)[0]
         y = s.relay_noise(y, self.noise_var, rng)
         # AGC over the whole input (signal + noise): RE power p means carrier power
         # p N_sc / N_fft (channel module's convention), so the gain is the same as on IQ
@@ -200,7 +248,8 @@ class MeaconingThreat(Threat):
         gain = math.sqrt(self.meaconer.power_w / p_in) if p_in > 0 else 0.0
         if cfg.max_gain_db is not None:
             gain = min(gain, 10.0 ** (cfg.max_gain_db / 20.0))
-        return (gain / s.unit) * y * s.delay_ramp(cfg.processing_delay_s)[None, None, :]
+        out = np.multiply(gain / s.unit, y)
+        return np.multiply(out, s.delay_ramp(cfg.processing_delay_s)[None, None, :], out=out)
 
 
 @THREAT_REGISTRY.register("jamming")

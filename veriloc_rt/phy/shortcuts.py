@@ -26,6 +26,11 @@ The shortcuts, by name:
   without SRS, noise alone there) drawn directly from its distribution, Gamma(M, sigma^2 / M)
   for M REs of i.i.d. CN(0, sigma^2), instead of from M drawn REs; those REs are then not
   drawn (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`).
+* ``relaytags``: the meaconer's received grid carries a stand-in QPSK symbol on the tag REs of
+  the slots the UE does not check instead of those slots' own tags, which are then not computed:
+  those REs reach only the relay's AGC, whose input power there, ``abs(h x + n)^2`` with
+  circularly symmetric noise n, has the same distribution for every unit-modulus x, and REs the
+  UE never reads (:class:`~veriloc_rt.attacks.threats.MeaconingThreat`).
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -41,7 +46,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "relaytags")
 
 
 def reference(name: str) -> bool:

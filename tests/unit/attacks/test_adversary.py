@@ -97,3 +97,61 @@ def test_fbs_link_gain_spoofed_bs_scales_each_replica_to_its_bs(tmp_path):
     with pytest.raises(ValueError, match="spoofed_bs"):
         sig("fbs", 1, 1, prop.bs_ue, prop.bs_adv, geo.adversary.pos[1], geo.ue.pos[1],
             stream(cfg.seed, "adversary", 1, 0, 1))
+
+
+def test_relay_stand_in_tags_keep_the_agc_and_every_read_re(tmp_path, monkeypatch):
+    """The shortcut ``relaytags``: the relay's received frame carries the stand-in QPSK symbol
+    on the tag REs of the slots the UE does not check, instead of their tags, which are not
+    computed (the chain's every-tag frame is never asked for). Against the reference
+    (``VERILOC_RT_REFERENCE=relaytags``, read when the threat is made): the same occupancy;
+    the same values on every RE the chain's own frame fills (PRS, checked tags: bit for bit);
+    unit modulus on the others, as the tags' QPSK there. Without the relay's noise its output
+    has the same modulus on every RE (the AGC's input power is the same sum of abs(h)^2
+    terms): tolerance 1e-9 relative, float rounding of sums over ~3e5 REs."""
+    out = {}
+    for ref in ("", "relaytags"):
+        monkeypatch.setenv("VERILOC_RT_REFERENCE", ref)
+        cfg, sig, _, args = _relay(tmp_path / (ref or "default"))
+        threat = sig.threat("meaconing")
+        assert threat.stand_in is (ref == "")
+        asked = []
+        frame_signals = sig.chain.frame_signals
+
+        def spy(*a, every_tag=False, **k):
+            asked.append(every_tag)
+            return frame_signals(*a, every_tag=every_tag, **k)
+
+        monkeypatch.setattr(sig.chain, "frame_signals", spy)
+        bs_ids = tuple(int(b) for b in args[3].tx_index[1])
+        grids, occ = threat.relayed_frame(bs_ids, 1)
+        lean = frame_signals(bs_ids, 1)
+        threat.noise_var = 0.0
+        out[ref] = (grids, occ, lean, sig(*args, np.random.default_rng(0)), asked)
+    (g_s, o_s, lean, y_s, asked_s), (g_r, o_r, _, y_r, asked_r) = out[""], out["relaytags"]
+    assert asked_s and not any(asked_s) and asked_r and all(asked_r)
+    np.testing.assert_array_equal(o_s, o_r)
+    np.testing.assert_array_equal(o_r, g_r != 0)
+    mine = lean.occupied
+    assert np.any(o_r & ~mine)                         # the check covers stand-in REs
+    np.testing.assert_array_equal(g_s[mine], g_r[mine])
+    np.testing.assert_allclose(np.abs(g_s[o_r & ~mine]), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(np.abs(g_r[o_r & ~mine]), 1.0, rtol=1e-12)
+    assert not np.array_equal(g_s[o_r & ~mine], g_r[o_r & ~mine])
+    np.testing.assert_allclose(np.abs(y_s), np.abs(y_r), rtol=1e-9, atol=1e-9 * np.abs(y_r).max())
+
+
+def test_relay_agc_input_power_per_re_does_not_depend_on_the_symbol():
+    """Why the stand-in is exact in distribution: abs(h x + n)^2 with n ~ CN(0, sigma^2) has the
+    same distribution for every x of modulus 1 (n circularly symmetric). Two symbols, 2e5
+    independent noise draws each, a two-sample KS test at 1e-3 (and the mean |h|^2 + sigma^2
+    within 5 standard errors)."""
+    from scipy.stats import ks_2samp
+
+    rng = np.random.default_rng(3)
+    h, sigma2, n = 0.7 - 0.4j, 0.5, 200_000
+    x1, x2 = (1 - 1j) / np.sqrt(2), (1 + 1j) / np.sqrt(2)
+    draw = lambda: np.sqrt(sigma2 / 2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))  # noqa: E731
+    p1, p2 = np.abs(h * x1 + draw()) ** 2, np.abs(h * x2 + draw()) ** 2
+    assert ks_2samp(p1, p2).pvalue > 1e-3
+    for p in (p1, p2):
+        assert abs(p.mean() - (abs(h) ** 2 + sigma2)) < 5 * p.std() / np.sqrt(n)

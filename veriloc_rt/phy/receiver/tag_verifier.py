@@ -84,8 +84,28 @@ def estimate_tag_channel(rx: np.ndarray, layout: ReLayout, bs: int, replica: np.
         noise_var : float, per RE
     """
     pil = _pilot_terms(layout, bs)
-    sym, kp, kt = pil.sym, pil.kp, pil.kt
-    h_ls = rx[sym, kp] * np.conj(replica[sym, kp])  # [L, n]
+    rx_p, rep_p = rx[pil.sym, pil.kp], replica[pil.sym, pil.kp]
+    # the estimate reads these values alone: the same values (a DS-tagged chain's grid on the
+    # standard chain's timing holds the same PRS REs) give the kept estimate
+    key = (layout, int(bs), int(smoothing), rx_p.dtype.str, rep_p.dtype.str, rx_p.tobytes(),
+           rep_p.tobytes())
+    h, nv = kept(_ESTIMATES, key, lambda: _estimate(rx_p, rep_p, layout, pil, smoothing),
+                 max_entries=ESTIMATES_KEPT)
+    return h.copy(), nv
+
+
+#: :func:`estimate_tag_channel`'s last results by their inputs' values
+_ESTIMATES: dict = {}
+#: results kept (a point's BSs and chains; the store is emptied when full)
+ESTIMATES_KEPT = 16
+
+
+def _estimate(rx_p: np.ndarray, rep_p: np.ndarray, layout: ReLayout, pil: _Pilots,
+              smoothing: int) -> tuple[np.ndarray, float]:
+    """:func:`estimate_tag_channel` from the received and replica values on the BS's PRS REs
+    (rx_p, rep_p : [L, n] complex)."""
+    kp, kt = pil.kp, pil.kt
+    h_ls = rx_p * np.conj(rep_p)  # [L, n]
     # phase step per subcarrier from all symbols' pilots placed on one axis (staggered comb)
     # summed per subcarrier in the pilots' order (bincount adds as np.add.at does)
     n_sc, flat_k, flat_h = layout.num_subcarriers, pil.flat_k, h_ls.ravel()

@@ -61,6 +61,8 @@ class TagModem:
                              f"({self.num_symbols} QPSK symbols); widen the band or add symbols")
         used = self.num_res if fill == "repeat" else self.num_symbols
         self.copy_index = np.arange(used) % self.num_symbols  # which codeword symbol each RE carries
+        #: [2 used] int64, the codeword bit of each LLR of the used REs (b0, b1 per RE)
+        self.bit_index = (2 * self.copy_index[:, None] + np.arange(2)).ravel()
 
     def modulate(self, tag: bytes) -> np.ndarray:
         """:return: x : [num_res] complex128, unit-energy QPSK on used REs, 0 on unused ones"""
@@ -92,8 +94,8 @@ class TagModem:
         n = self.copy_index.size
         nv = np.broadcast_to(np.asarray(noise_var, dtype=np.float64), (self.num_res,))[:n]
         llr = qpsk_llr(np.asarray(y)[:n], np.asarray(h)[:n], np.maximum(nv, 1e-30))
-        combined = np.zeros(self.code.e)
-        bit_index = (2 * self.copy_index[:, None] + np.arange(2)).ravel()
-        np.add.at(combined, bit_index, llr)
+        # the copies' LLRs summed per codeword bit in the REs' order (bincount adds as
+        # np.add.at does, into 0: the same sums)
+        combined = np.bincount(self.bit_index, weights=llr, minlength=self.code.e)
         bits, ok = self.code.decode(combined)
         return np.packbits(bits).tobytes(), bool(ok)

@@ -156,3 +156,66 @@ def gated_llr_total(code: NRLDPC, llr: np.ndarray) -> np.ndarray:
         np.add.at(total[i], code.positions, row)
     total[:, code.k:code.k_full] = 40.0
     return total
+
+
+@pytest.mark.parametrize("k,method", [(256, "sum_product"), (512, "sum_product"), (256, "min_sum")])
+def test_words_already_codewords_skip_belief_propagation_with_its_output(k, method, monkeypatch):
+    """A word whose hard decisions on the sent bits are a codeword's (and whose sent bits' LLRs
+    are not near 0) is not handed to belief propagation: its bits and ``ok`` must be what the
+    ``ldpc`` package returns for it (the punctured bits recovered). The reference here runs the
+    package on every word (its BpDecoder, received-vector input, error probabilities
+    1 / (1 + e^|L|)), from the LLR totals derived independently (:func:`gated_llr_total`).
+    Exact equality: the skip claims the package's own output. Consistent Gaussian LLRs of mean
+    mu from 2 (nearly no word clean) to 64 (nearly all: bit error rate Q(sqrt(mu / 2))), and
+    clean words with a few sent LLRs pulled to 1e-4 (left
+    to BP); the package's calls are counted to see both branches taken."""
+    code = NRLDPC(k, method=method, min_information=0.0)
+    rng = np.random.default_rng(5)
+    llrs = []
+    for mu in (2.0, 4.0, 8.0, 16.0, 32.0, 64.0):
+        sign = 1 - 2.0 * code.encode(rng.integers(0, 2, (40, k), dtype=np.uint8))
+        llrs.append(sign * rng.normal(mu, np.sqrt(2 * mu), sign.shape))
+    weak = np.abs(llrs[-1][:10]).copy()
+    weak[:, rng.integers(0, code.e, 3)] = 1e-4
+    llrs.append(np.sign(llrs[-1][:10]) * weak)
+    llr = np.concatenate(llrs)
+    calls = []
+    import ldpc
+
+    real_class = ldpc.BpDecoder
+
+    class Counting:
+        """The package's decoder, its decode calls counted (the code builds it on first use)."""
+
+        def __init__(self, *args, **kwargs):
+            self.real = real_class(*args, **kwargs)
+
+        def __getattr__(self, name):
+            return getattr(self.real, name)
+
+        def decode(self, v):
+            calls.append(1)
+            return self.real.decode(v)
+
+    monkeypatch.setattr(ldpc, "BpDecoder", Counting)
+    dec, ok = code.decode(llr)
+    total = np.clip(gated_llr_total(code, llr), -40.0, 40.0)
+    hard = (total < 0).astype(np.uint8)
+    ref = real_class(code.h, error_channel=np.full(code.n, 0.1), max_iter=25,
+                    bp_method="product_sum" if method == "sum_product" else "minimum_sum",
+                    ms_scaling_factor=0.75 if method == "min_sum" else 1.0,
+                    schedule="parallel", input_vector_type="received_vector")
+    sent = np.zeros(code.n, dtype=bool)
+    sent[code.positions] = True
+    sent[code.k:code.k_full] = True
+    clean = np.zeros(llr.shape[0], dtype=bool)
+    for i in range(llr.shape[0]):
+        ref.update_channel_probs(1.0 / (1.0 + np.exp(np.abs(total[i]))))
+        cw = np.asarray(ref.decode(hard[i]), dtype=np.uint8)
+        np.testing.assert_array_equal(dec[i], cw[:k])
+        assert ok[i] == bool(ref.converge)
+        clean[i] = ref.converge and np.array_equal(cw[sent], hard[i, sent])
+    # both branches taken: every clean word but the 10 weakened ones skipped, the rest decoded
+    assert 60 <= clean.sum() <= llr.shape[0] - 60
+    assert clean[-10:].all()
+    assert len(calls) == llr.shape[0] - clean.sum() + 10
