@@ -26,6 +26,11 @@ The shortcuts, by name:
   without SRS, noise alone there) drawn directly from its distribution, Gamma(M, sigma^2 / M)
   for M REs of i.i.d. CN(0, sigma^2), instead of from M drawn REs; those REs are then not
   drawn (:class:`~veriloc_rt.phy.receiver.uplink.UplinkPositioner`).
+* ``toa32``: the ToA search's zero-padded delay profiles (the Doppler-compensated profile whose
+  peak detects a TRP and the first path's windowed profile) transformed in single precision
+  (:class:`~veriloc_rt.phy.receiver.toa.ToAEstimator`), as its Doppler scan and delay-Doppler
+  map already are: the same sums, rounded to 2^-24 relative instead of 2^-53; the ToA's
+  sub-sample refinement, the peak and the snapshots stay in double precision.
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -41,7 +46,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "toa32")
 
 
 def reference(name: str) -> bool:

@@ -43,6 +43,7 @@ from scipy.special import chdtri   # chi-square inverse survival function (a ufu
                                    # faster than scipy.stats.chi2.isf, same values)
 
 from ..channel import as_slice, kept, occupancy_groups
+from ..shortcuts import reference
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
@@ -484,6 +485,9 @@ class ToAEstimator:
         #: Doppler hypotheses [V] float64, Hz (None without a scan)
         self.hypotheses = (np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
                            if cfg.doppler_max_hz > 0 else None)
+        #: the zero-padded profiles' transform precision: complex64 (shortcut ``toa32``), or
+        #: None, the spectra's (complex128: the reference)
+        self.profile_dtype = None if reference("toa32") else np.dtype(np.complex64)
         self._layouts: dict = {}
 
     # -- helpers ---------------------------------------------------------------------------
@@ -526,9 +530,10 @@ class ToAEstimator:
 
     @staticmethod
     def lag_power(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int,
-                  win: np.ndarray | None = None) -> np.ndarray:
+                  win: np.ndarray | None = None, dtype=None) -> np.ndarray:
         """Antenna-summed power of the profiles on the lag grid, sum_a |c_a(tau)|^2:
-        [..., num_ant, num_bins] -> [..., num_lags] float64 (transform in g's precision).
+        [..., num_ant, num_bins] -> [..., num_lags] float64 (transform in g's precision, or in
+        ``dtype``'s: complex64 or complex128).
 
         Only the power is used, so the bins are transformed from the lowest one at index 0: that
         multiplies every profile by one phase ramp over the lags, invisible in |.|^2, and for
@@ -542,7 +547,8 @@ class ToAEstimator:
         ``g`` may already be the head of the zero-padded input (:meth:`padded_input`, which
         :meth:`doppler_spectra` can write into): it is then transformed where it is.
         """
-        dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
+        if dtype is None:
+            dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
         pos = idx - idx.min()
         plan = zoom_plan(pos, int(lags[0]), lags.size, n_up, np.dtype(dtype))
         if plan is not None and lags[-1] - lags[0] == lags.size - 1:
@@ -706,7 +712,8 @@ class ToAEstimator:
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
         g = cs.combine(rot)
-        m_rect = self.lag_power(g, idx, lags, n_up)
+        pd = self.profile_dtype
+        m_rect = self.lag_power(g, idx, lags, n_up, dtype=pd)
         tau_pk = float(lags[int(m_rect.argmax())] * step)
         x = cs.at_delay(tau_pk) * rot                                              # [A, B]
         ref = x.sum(axis=1)
@@ -721,7 +728,7 @@ class ToAEstimator:
                 nu += dnu
                 rot = np.exp(-2j * np.pi * nu * tc)
                 g = cs.combine(rot)
-                m_rect = self.lag_power(g, idx, lags, n_up)
+                m_rect = self.lag_power(g, idx, lags, n_up, dtype=pd)
         # 3. detection against the exact noise floor
         # the floor: the thermal one from ``noise_var`` (free symbols), or, when larger, a CFAR
         # estimate from the median of the delay profile. Interference confined to the PRS REs
@@ -798,13 +805,13 @@ class ToAEstimator:
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
                     g = cs.combine(rot)
-                metric = self.lag_power(g, idx, lags1, n_up, win)   # the map's lags: i1's peak
+                metric = self.lag_power(g, idx, lags1, n_up, win, self.profile_dtype)   # i1's peak
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
                 i = int(_clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
                 while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
                     i += 1 if metric[i + 1] > metric[i] else -1
             else:
-                metric = self.lag_power(g * win, idx, lags, n_up)
+                metric = self.lag_power(g * win, idx, lags, n_up, dtype=self.profile_dtype)
                 i = self._first_crossing(metric, floor, 1, dof)
         # 5. sub-sample refinement
         if 0 < i < metric.size - 1:
