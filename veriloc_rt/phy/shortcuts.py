@@ -31,6 +31,12 @@ The shortcuts, by name:
   (:class:`~veriloc_rt.phy.receiver.toa.ToAEstimator`), as its Doppler scan and delay-Doppler
   map already are: the same sums, rounded to 2^-24 relative instead of 2^-53; the ToA's
   sub-sample refinement, the peak and the snapshots stay in double precision.
+* ``dofherk``: the spatial covariance R = sum x x^H behind the noise's degrees of freedom (of
+  the PRS REs' cross-spectra and of the free symbols) and the free symbols' mean power (tr R
+  over their count) by BLAS's Hermitian rank-k update ``zherk`` (one triangle, no conjugated
+  copy of the samples) instead of the products ``x @ x.conj().T`` and a separate mean of
+  ``|x|^2`` (:func:`~veriloc_rt.phy.receiver.toa.spatial_covariance_stats`): the same sums in
+  another order (float64 rounding only).
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -46,7 +52,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "toa32")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "toa32", "dofherk")
 
 
 def reference(name: str) -> bool:

@@ -39,6 +39,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.fft as sfft
+from scipy.linalg.blas import zherk as _zherk
 from scipy.special import chdtri   # chi-square inverse survival function (a ufunc: 40x
                                    # faster than scipy.stats.chi2.isf, same values)
 
@@ -283,7 +284,7 @@ def _is_view(a: np.ndarray, b: np.ndarray) -> bool:
             and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
 
 
-def spatial_dof(x: np.ndarray) -> float:
+def spatial_dof(x: np.ndarray, hermitian: bool = False) -> float:
     """Effective chi-square degrees of freedom of sum_a |x_a|^2 for zero-mean samples x.
 
     Satterthwaite's two-moment match of sum_i lambda_i chi2(2) / 2, lambda_i the eigenvalues of
@@ -295,15 +296,38 @@ def spatial_dof(x: np.ndarray) -> float:
 
     :param x: [num_ant, num_samples] complex, or a sequence of such blocks (their samples
         pooled, as if concatenated)
+    :param hermitian: R by BLAS's Hermitian rank-k update (:func:`spatial_covariance`; the
+        shortcut ``dofherk``), else by the products ``x x^H`` (the reference)
     :returns: float in [2, 2 num_ant] (2 num_ant without energy)
+    """
+    return spatial_covariance_stats(x, hermitian)[1]
+
+
+def spatial_covariance_stats(x: np.ndarray, hermitian: bool = False) -> tuple[float, float]:
+    """``(tr R, spatial_dof)`` of the samples ``x`` (as :func:`spatial_dof`), R = sum_n x_n x_n^H
+    unscaled: tr R is sum |x|^2 over every antenna and sample.
+
+    ``hermitian``: complex128 blocks through ``zherk`` (one triangle of R, no conjugated copy of
+    the samples, half the products), ||R||_F^2 from the diagonal and twice the strict triangle;
+    the same sums as the reference's ``x @ x.conj().T`` in another order (rounding only).
     """
     blocks = [x] if isinstance(x, np.ndarray) else list(x)
     a = blocks[0].shape[0]
-    r = sum(b @ b.conj().T for b in blocks)          # [A, A]; the 1/N scale cancels in the ratio
-    tr = float(r.trace().real)
+    if hermitian and all(b.dtype == np.complex128 for b in blocks):
+        r = None
+        for b in blocks:   # b.T [N, A] (Fortran order for a C-ordered b, no copy); trans=2: b.T^H b.T
+            r = (_zherk(1.0, b.T, trans=2) if r is None
+                 else _zherk(1.0, b.T, beta=1.0, c=r, trans=2, overwrite_c=1))
+        d = r.diagonal().real                        # conj(R)'s upper triangle: the same moduli
+        tr = float(d.sum())
+        fro = float((d * d).sum()) + 2.0 * float((np.abs(np.triu(r, 1)) ** 2).sum())
+    else:
+        r = sum(b @ b.conj().T for b in blocks)      # [A, A]; the 1/N scale cancels in the ratio
+        tr = float(r.trace().real)
+        fro = float((np.abs(r) ** 2).sum())
     if tr <= 0:
-        return 2.0 * a
-    return float(_clip(2.0 * tr ** 2 / float((np.abs(r) ** 2).sum()), 2.0, 2.0 * a))
+        return tr, 2.0 * a
+    return tr, float(_clip(2.0 * tr ** 2 / fro, 2.0, 2.0 * a))
 
 
 def _median(x: np.ndarray) -> float:
@@ -488,6 +512,8 @@ class ToAEstimator:
         #: the zero-padded profiles' transform precision: complex64 (shortcut ``toa32``), or
         #: None, the spectra's (complex128: the reference)
         self.profile_dtype = None if reference("toa32") else np.dtype(np.complex64)
+        #: the spatial covariance by a Hermitian rank-k update (shortcut ``dofherk``)
+        self.hermitian = not reference("dofherk")
         self._layouts: dict = {}
 
     # -- helpers ---------------------------------------------------------------------------
@@ -735,7 +761,7 @@ class ToAEstimator:
         # (a spoofer's standard PRS against an encrypted replica, a relay) is absent from the
         # free symbols but spreads over every lag of the profile like noise; its spatial
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
-        dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups]))
+        dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups], self.hermitian))
         nv = max(float(noise_var), 0.0)
         sum_ref = float(cs.bin_power.sum())
         floor_rect = a_n * nv * sum_ref

@@ -89,3 +89,65 @@ def test_estimates_with_and_without_toa32_agree(monkeypatch, method):
             assert a.toa_s == pytest.approx(b.toa_s, abs=TOA_ABS_S)
             assert a.peak_snr_db == pytest.approx(b.peak_snr_db, abs=SNR_ABS_DB)
             np.testing.assert_allclose(a.snapshots, b.snapshots, rtol=1e-6)
+
+
+#: ``dofherk`` against the eigenvalue definition and the reference's products: the same sums of
+#: ~10^4 float64 products in another order, relative rounding ~1e-16 sqrt(n) per entry; 1e-12
+#: leaves a margin of ~1e2 (the test of the reference itself uses 1e-10 against eigvalsh)
+HERK_RTOL = 1e-12
+
+
+def test_spatial_dof_by_the_hermitian_update_equals_the_eigenvalue_definition():
+    """spatial_dof(..., hermitian=True) (zherk, one triangle) against 2 (sum lambda)^2 /
+    sum lambda^2 over the eigenvalues of the sample covariance (eigvalsh of the products written
+    out), for white, mixed and rank-1 fields, one block or several pooled (the chain's comb
+    groups), and tr R against sum |x|^2; within HERK_RTOL; the reference path's value is the
+    products' (``hermitian=False``)."""
+    from veriloc_rt.phy.receiver.toa import spatial_covariance_stats, spatial_dof
+
+    rng = np.random.default_rng(3)
+    for mix in (np.eye(5), rng.standard_normal((5, 5)), np.outer(np.arange(1, 6), np.ones(5))):
+        x = mix @ (rng.standard_normal((5, 3000)) + 1j * rng.standard_normal((5, 3000)))
+        lam = np.clip(np.linalg.eigvalsh(x @ x.conj().T), 0.0, None)
+        want = float(np.clip(2.0 * lam.sum() ** 2 / np.sum(lam ** 2), 2.0, 10.0))
+        parts = [np.ascontiguousarray(x[:, i:i + 500]) for i in range(0, 3000, 500)]
+        for blocks in (x, parts):
+            tr, dof = spatial_covariance_stats(blocks, True)
+            assert dof == pytest.approx(want, rel=HERK_RTOL)
+            assert tr == pytest.approx(float(np.sum(np.abs(x) ** 2)), rel=HERK_RTOL)
+            assert spatial_dof(blocks, True) == dof
+            assert spatial_dof(blocks, False) == pytest.approx(dof, rel=HERK_RTOL)
+    assert spatial_dof(np.zeros((5, 10), complex), True) == 10.0
+    assert spatial_dof(np.ones((1, 10), complex), True) == 2.0
+
+
+def test_noise_estimates_by_the_hermitian_update_and_the_switch(monkeypatch):
+    """noise_estimates(..., hermitian=True): the mean power of the free symbols (tr R over their
+    count) and their dof against the reference's values (``_mean_power`` and the products)
+    within HERK_RTOL; TimingStage and ToAEstimator take the path from VERILOC_RT_REFERENCE when
+    built (``dofherk`` or ``all``: the reference)."""
+    from veriloc_rt.config.channel import ChannelConfig
+    from veriloc_rt.phy.chain.receiver import TimingStage
+    from veriloc_rt.phy.nr.ofdm import OFDM
+    from veriloc_rt.phy.receiver.sync import noise_estimates
+
+    rng = np.random.default_rng(8)
+    grid = rng.standard_normal((5, 3, 14, 48)) + 1j * rng.standard_normal((5, 3, 14, 48))
+    grid[:, :, :, :24] *= 3.0                             # not white: the dof is below 2 A
+    busy = tuple(range(3, 14))
+    nv_ref, dof_ref = noise_estimates(grid, busy)
+    nv, dof = noise_estimates(grid, busy, True)
+    free = grid[:, :, :3, :]
+    assert nv == pytest.approx(float(np.mean(np.abs(free) ** 2)), rel=HERK_RTOL)
+    assert nv == pytest.approx(nv_ref, rel=HERK_RTOL)
+    assert dof == pytest.approx(dof_ref, rel=HERK_RTOL) and dof < 10.0
+    ofdm = OFDM(NRConfig(slots_per_frame=2))
+    for env, fast in ((None, True), ("toa32", True), ("dofherk", False), ("all", False)):
+        if env is None:
+            monkeypatch.delenv("VERILOC_RT_REFERENCE", raising=False)
+        else:
+            monkeypatch.setenv("VERILOC_RT_REFERENCE", env)
+        est = ToAEstimator(ReceiverConfig(), GUARD)
+        assert est.hermitian is fast
+        stage = TimingStage(est, ofdm, range(2), ChannelConfig(), 12e-6, busy, 1.0)
+        assert stage.hermitian is fast
