@@ -37,6 +37,11 @@ The shortcuts, by name:
   copy of the samples) instead of the products ``x @ x.conj().T`` and a separate mean of
   ``|x|^2`` (:func:`~veriloc_rt.phy.receiver.toa.spatial_covariance_stats`): the same sums in
   another order (float64 rounding only).
+* ``spectra32``: the ToA search's sums of the cross-spectra over the blocks (at a Doppler) and
+  over the bins (at a lag: the per-block correlations, the AoA's snapshots) taken on the
+  single-precision copy of the spectra its Doppler scan already makes, half the memory read of
+  the double-precision spectra (:class:`~veriloc_rt.phy.receiver.toa.ToAEstimator`): the same
+  sums of the products rounded to 2^-24 relative; results in double precision.
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -52,7 +57,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "toa32", "dofherk")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "toa32", "dofherk", "spectra32")
 
 
 def reference(name: str) -> bool:

@@ -248,6 +248,40 @@ class _Derotated:
     combined: np.ndarray
 
 
+class _SingleSpectra:
+    """:meth:`CrossSpectra.combine` and :meth:`CrossSpectra.at_delay` from the single-precision
+    copies of the spectra that the Doppler scan makes (:meth:`ToAEstimator.doppler_spectra`'s
+    ``keep``; the shortcut ``spectra32``): the same sums of the products rounded to complex64,
+    half the memory read of the complex128 spectra; results in complex128.
+
+    :param cs: the cross-spectra; parts: per group of ``cs.groups`` [B_g, A, K_g] complex64
+    """
+
+    def __init__(self, cs: CrossSpectra, parts: list):
+        self.cs, self.parts = cs, parts
+
+    def combine(self, weights: np.ndarray) -> np.ndarray:
+        """sum_b w_b S_abk: [B] -> [A, K] complex128 (products in single precision)."""
+        cs = self.cs
+        out = np.zeros((cs.num_ant, cs.freqs.size), dtype=np.complex128)
+        w = weights.astype(np.complex64)
+        for (blocks, _, _), ix, q in zip(cs.groups, cs.bin_index, self.parts):
+            out[:, ix] += (w[blocks] @ q.reshape(blocks.size, -1)).reshape(q.shape[1:])
+        return out
+
+    def at_delay(self, tau: float, e: np.ndarray | None = None) -> np.ndarray:
+        """c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128 (products in single
+        precision). :param e: [K] complex128, e^{j2pi f_k tau} when the caller has it already"""
+        cs = self.cs
+        if e is None:
+            e = np.exp(2j * np.pi * cs.freqs * tau)
+        e = e.astype(np.complex64)
+        out = np.zeros((cs.num_ant, cs.ref_power.shape[0]), dtype=np.complex128)
+        for (blocks, _, _), ix, q in zip(cs.groups, cs.bin_index, self.parts):
+            out[:, blocks] = (q.reshape(-1, q.shape[-1]) @ e[ix]).reshape(q.shape[:2]).T
+        return out
+
+
 #: per-thread transform inputs of :func:`_padded` (a chain may run in several threads of a Dask
 #: worker)
 _WORK = threading.local()
@@ -514,6 +548,9 @@ class ToAEstimator:
         self.profile_dtype = None if reference("toa32") else np.dtype(np.complex64)
         #: the spatial covariance by a Hermitian rank-k update (shortcut ``dofherk``)
         self.hermitian = not reference("dofherk")
+        #: the spectra's combinations over blocks and bins from the scan's single-precision
+        #: copies (shortcut ``spectra32``)
+        self.single_spectra = not reference("spectra32")
         self._layouts: dict = {}
 
     # -- helpers ---------------------------------------------------------------------------
@@ -611,7 +648,7 @@ class ToAEstimator:
 
     @staticmethod
     def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray,
-                        out: np.ndarray | None = None) -> np.ndarray:
+                        out: np.ndarray | None = None, keep: list | None = None) -> np.ndarray:
         """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
         Single precision: the maps built from it only rank hypotheses and cells against
@@ -625,6 +662,8 @@ class ToAEstimator:
 
         :param out: [V, A, K] complex64 to write into (e.g. the head of :meth:`padded_input`),
             else a new array
+        :param keep: a list to append each group's single-precision spectra to, [B_g, A, K_g]
+            complex64 in the order of ``cs.groups`` (what :class:`_SingleSpectra` reads)
         """
         rot = _doppler_rotations(nus, tc)                                             # [V, B]
         a_ = cs.num_ant
@@ -635,6 +674,8 @@ class ToAEstimator:
         for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
             q = np.empty((blocks.size, a_, bins.size), dtype=np.complex64)   # [B_g, A, K_g]
             q[...] = part.transpose(1, 0, 2)                                  # cast and reorder in one pass
+            if keep is not None:
+                keep.append(q)
             prod = (rot[:, blocks] @ q.reshape(blocks.size, -1)).reshape(-1, a_, bins.size)
             if cs.bins_overlap:
                 out[:, :, ix] += prod
@@ -726,7 +767,10 @@ class ToAEstimator:
             idx1, lags1, n1 = layout.scan.idx, layout.scan.lags, layout.scan.size
             # contiguous bins: the spectra written straight into the scan transform's input
             pad = self.padded_input((nus.size, a_n), idx1, n1, np.complex64)
-            g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
+            kept32 = [] if self.single_spectra else None
+            g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size],
+                                        kept32)
+            src = cs if kept32 is None else _SingleSpectra(cs, kept32)   # combine, at_delay
             smap = self.lag_power(g_nu, idx1, lags1, n1)                             # [V, L1]
             metric = smap.max(axis=-1)
             i = int(metric.argmax())
@@ -734,14 +778,14 @@ class ToAEstimator:
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
         else:
-            nu, g_nu, nus, smap = 0.0, None, None, None
+            nu, g_nu, nus, smap, src = 0.0, None, None, None, cs
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
-        g = cs.combine(rot)
+        g = src.combine(rot)
         pd = self.profile_dtype
         m_rect = self.lag_power(g, idx, lags, n_up, dtype=pd)
         tau_pk = float(lags[int(m_rect.argmax())] * step)
-        x = cs.at_delay(tau_pk) * rot                                              # [A, B]
+        x = src.at_delay(tau_pk) * rot                                              # [A, B]
         ref = x.sum(axis=1)
         z = (x * ref.conj()[:, None]).sum(axis=0)                                # [B]
         w = np.abs(z)
@@ -753,7 +797,7 @@ class ToAEstimator:
             if abs(dnu) <= cfg.doppler_step_hz:
                 nu += dnu
                 rot = np.exp(-2j * np.pi * nu * tc)
-                g = cs.combine(rot)
+                g = src.combine(rot)
                 m_rect = self.lag_power(g, idx, lags, n_up, dtype=pd)
         # 3. detection against the exact noise floor
         # the floor: the thermal one from ``noise_var`` (free symbols), or, when larger, a CFAR
@@ -776,17 +820,18 @@ class ToAEstimator:
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
             scan = _DopplerScan(g_nu, nus, self._reach(smap, layout)) if smap is not None else None
-            tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
+            tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof, src)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
             tau = float(lags[int(m_rect.argmax())] * step)
         e = np.exp(2j * np.pi * cs.freqs * tau)              # [K], the exact profile's phase ramp
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db),
-                           peak=g @ e, snapshots=cs.at_delay(tau, e) * rot, noise_var=nv)
+                           peak=g @ e, snapshots=src.at_delay(tau, e) * rot, noise_var=nv)
 
     def _pick(self, cs: CrossSpectra, layout: _Layout, m_rect: np.ndarray, scan: _DopplerScan | None,
-              start: _Derotated, tc: np.ndarray, nv: float, dof: float) -> tuple[float, _Derotated]:
+              start: _Derotated, tc: np.ndarray, nv: float, dof: float,
+              src: "CrossSpectra | _SingleSpectra | None" = None) -> tuple[float, _Derotated]:
         """Steps 4 and 5 for a detected BS: the ToA, and the derotation (Doppler, block phases,
         combined spectra), ``start`` or, when the first path's own Doppler replaces the scan's,
         the first path's.
@@ -795,7 +840,8 @@ class ToAEstimator:
             profile's unwindowed power
         :param scan: the Doppler scan (None without one)
         :param tc: [B] float64, s, block times about their mean; nv: per-RE noise variance;
-            dof: the noise's chi-square degrees of freedom
+            dof: the noise's chi-square degrees of freedom; src: what combines the spectra
+            over the blocks (``cs``, or its single-precision copies: ``spectra32``; None: ``cs``)
         """
         cfg = self.cfg
         a_n = cs.num_ant
@@ -830,7 +876,7 @@ class ToAEstimator:
                 if abs(nu_fp - nu) > self.doppler_tolerance_hz(tc):   # the first path's own Doppler
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
-                    g = cs.combine(rot)
+                    g = (cs if src is None else src).combine(rot)
                 metric = self.lag_power(g, idx, lags1, n_up, win, self.profile_dtype)   # i1's peak
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
                 i = int(_clip(round(tau1 / step) - lags[0], 0, metric.size - 1))

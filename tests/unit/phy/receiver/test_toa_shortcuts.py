@@ -59,8 +59,9 @@ def test_profile_power_in_single_precision_equals_the_explicit_dft():
 @pytest.mark.parametrize("method", ["first_path", "strongest"])
 def test_estimates_with_and_without_toa32_agree(monkeypatch, method):
     """A noisy two-path link (an early path 8 dB under the strong one, 250 ns before it, with
-    different Dopplers) over 10 slots: the estimator with the shortcut (default) and on the
-    reference path (``VERILOC_RT_REFERENCE=toa32``, read when the estimator is built) detect
+    different Dopplers) over 10 slots: the estimator with the shortcut alone (the other ToA
+    shortcuts named in VERILOC_RT_REFERENCE) and on the reference path (``toa32`` named too,
+    or ``all``; read when the estimator is built) detect
     alike, give the same Doppler, the same ToA within TOA_ABS_S and the peak SNR within
     SNR_ABS_DB; the reference path is the double-precision transform."""
     nr = NRConfig(slots_per_frame=10)
@@ -75,11 +76,11 @@ def test_estimates_with_and_without_toa32_agree(monkeypatch, method):
         rng = np.random.default_rng(seed)
         y = add_noise(apply_frequency(links, rep[None], np.ones(1), tx.ofdm, slots, 1.75e-6), nv, rng)
         cs = frequency_cross_spectra(y, rep, tx.ofdm, slots)
-        monkeypatch.delenv("VERILOC_RT_REFERENCE", raising=False)
+        monkeypatch.setenv("VERILOC_RT_REFERENCE", "dofherk,spectra32")   # toa32 alone
         fast = ToAEstimator(cfg, GUARD)
         assert fast.profile_dtype == np.complex64
         a = fast(cs, nv)
-        for named in ("toa32", "all"):
+        for named in ("toa32,dofherk,spectra32", "all"):
             monkeypatch.setenv("VERILOC_RT_REFERENCE", named)
             ref = ToAEstimator(cfg, GUARD)
             assert ref.profile_dtype is None
@@ -151,3 +152,62 @@ def test_noise_estimates_by_the_hermitian_update_and_the_switch(monkeypatch):
         assert est.hermitian is fast
         stage = TimingStage(est, ofdm, range(2), ChannelConfig(), 12e-6, busy, 1.0)
         assert stage.hermitian is fast
+
+
+#: ``spectra32``: sums of 20-120 products of complex64-rounded spectra (relative rounding
+#: 2^-24 = 6e-8 per product and addition) against the double-precision sums: 1e-5 of the
+#: largest entry bounds the error with a margin of ~10 (C64_RTOL's bound)
+S32_RTOL = C64_RTOL
+
+
+def test_single_precision_combinations_equal_the_double_precision_sums(monkeypatch):
+    """The scan's single-precision copies (``doppler_spectra``'s ``keep``) combined over the
+    blocks and over the bins (_SingleSpectra) against the sums written out in double precision
+    on the dense spectra (sum_b w_b S_abk; sum_k S_abk e^{j2pi f_k tau}), for a comb-6 PRS (six
+    groups of blocks) and a dense replica (one group): within S32_RTOL of the largest entry;
+    results in complex128. The estimator reads the switch when built (``spectra32``, ``all``:
+    the double-precision spectra), and both paths give the same detection and a ToA within
+    TOA_ABS_S x 1e3 (the combinations' rounding reaches the refinement through the combined
+    spectra: 1e-12 s is 0.3 mm)."""
+    from veriloc_rt.phy.receiver.toa import _SingleSpectra
+
+    nr = NRConfig(slots_per_frame=4)
+    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), (1, 2, 3))
+    slots = range(4)
+    rep = tx.replica(0, 0, slots)
+    rng = np.random.default_rng(12)
+    links = Links(np.array([[2.0e-6]]), np.array([[[1.0]]]), np.array([[60.0]]), np.ones((1, 1), bool))
+    y = add_noise(apply_frequency(links, rep[None], np.ones(1), tx.ofdm, slots, 1.75e-6), 0.5, rng)
+    dense_rep = np.where(rep != 0, rep, 1.0 + 0j)                # every RE occupied: one group
+    for replica in (rep, dense_rep):
+        cs = frequency_cross_spectra(y, replica, tx.ofdm, slots)
+        tc = cs.block_times - cs.block_times.mean()
+        keep = []
+        ToAEstimator.doppler_spectra(cs, np.array([-50.0, 0.0, 50.0]), tc, None, keep)
+        assert len(keep) == len(cs.groups)
+        single = _SingleSpectra(cs, keep)
+        w = np.exp(-2j * np.pi * 37.0 * tc)
+        want = np.einsum("b,abk->ak", w, cs.dense)
+        got = single.combine(w)
+        assert got.dtype == np.complex128
+        np.testing.assert_allclose(got, want, rtol=0, atol=S32_RTOL * np.abs(want).max())
+        tau = 0.31e-6
+        want = np.einsum("abk,k->ab", cs.dense, np.exp(2j * np.pi * cs.freqs * tau))
+        got = single.at_delay(tau)
+        assert got.dtype == np.complex128
+        np.testing.assert_allclose(got, want, rtol=0, atol=S32_RTOL * np.abs(want).max())
+        assert not np.array_equal(got, cs.at_delay(tau))
+    cfg = ReceiverConfig(doppler_max_hz=150.0)
+    cs = frequency_cross_spectra(y, rep, tx.ofdm, slots)
+    monkeypatch.setenv("VERILOC_RT_REFERENCE", "toa32,dofherk")             # spectra32 alone
+    fast = ToAEstimator(cfg, GUARD)
+    assert fast.single_spectra
+    a = fast(cs, 0.5)
+    for named in ("toa32,dofherk,spectra32", "all"):
+        monkeypatch.setenv("VERILOC_RT_REFERENCE", named)
+        ref = ToAEstimator(cfg, GUARD)
+        assert not ref.single_spectra
+        b = ref(cs, 0.5)
+        assert a.detected and b.detected
+        assert a.toa_s == pytest.approx(b.toa_s, abs=1e3 * TOA_ABS_S)
+        assert a.doppler_hz == pytest.approx(b.doppler_hz, abs=1e-3)
