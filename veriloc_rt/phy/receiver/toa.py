@@ -248,7 +248,7 @@ class _Derotated:
     combined: np.ndarray
 
 
-class _SingleSpectra:
+class SingleSpectra:
     """:meth:`CrossSpectra.combine` and :meth:`CrossSpectra.at_delay` from the single-precision
     copies of the spectra that the Doppler scan makes (:meth:`ToAEstimator.doppler_spectra`'s
     ``keep``; the shortcut ``spectra32``): the same sums of the products rounded to complex64,
@@ -663,7 +663,7 @@ class ToAEstimator:
         :param out: [V, A, K] complex64 to write into (e.g. the head of :meth:`padded_input`),
             else a new array
         :param keep: a list to append each group's single-precision spectra to, [B_g, A, K_g]
-            complex64 in the order of ``cs.groups`` (what :class:`_SingleSpectra` reads)
+            complex64 in the order of ``cs.groups`` (what :class:`SingleSpectra` reads)
         """
         rot = _doppler_rotations(nus, tc)                                             # [V, B]
         a_ = cs.num_ant
@@ -770,7 +770,7 @@ class ToAEstimator:
             kept32 = [] if self.single_spectra else None
             g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size],
                                         kept32)
-            src = cs if kept32 is None else _SingleSpectra(cs, kept32)   # combine, at_delay
+            src = cs if kept32 is None else SingleSpectra(cs, kept32)   # combine, at_delay
             smap = self.lag_power(g_nu, idx1, lags1, n1)                             # [V, L1]
             metric = smap.max(axis=-1)
             i = int(metric.argmax())
@@ -831,7 +831,7 @@ class ToAEstimator:
 
     def _pick(self, cs: CrossSpectra, layout: _Layout, m_rect: np.ndarray, scan: _DopplerScan | None,
               start: _Derotated, tc: np.ndarray, nv: float, dof: float,
-              src: "CrossSpectra | _SingleSpectra | None" = None) -> tuple[float, _Derotated]:
+              src: "CrossSpectra | SingleSpectra | None" = None) -> tuple[float, _Derotated]:
         """Steps 4 and 5 for a detected BS: the ToA, and the derotation (Doppler, block phases,
         combined spectra), ``start`` or, when the first path's own Doppler replaces the scan's,
         the first path's.

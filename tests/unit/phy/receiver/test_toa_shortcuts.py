@@ -162,14 +162,14 @@ S32_RTOL = C64_RTOL
 
 def test_single_precision_combinations_equal_the_double_precision_sums(monkeypatch):
     """The scan's single-precision copies (``doppler_spectra``'s ``keep``) combined over the
-    blocks and over the bins (_SingleSpectra) against the sums written out in double precision
+    blocks and over the bins (SingleSpectra) against the sums written out in double precision
     on the dense spectra (sum_b w_b S_abk; sum_k S_abk e^{j2pi f_k tau}), for a comb-6 PRS (six
     groups of blocks) and a dense replica (one group): within S32_RTOL of the largest entry;
     results in complex128. The estimator reads the switch when built (``spectra32``, ``all``:
     the double-precision spectra), and both paths give the same detection and a ToA within
     TOA_ABS_S x 1e3 (the combinations' rounding reaches the refinement through the combined
     spectra: 1e-12 s is 0.3 mm)."""
-    from veriloc_rt.phy.receiver.toa import _SingleSpectra
+    from veriloc_rt.phy.receiver.toa import SingleSpectra
 
     nr = NRConfig(slots_per_frame=4)
     tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="none"), (1, 2, 3))
@@ -185,7 +185,7 @@ def test_single_precision_combinations_equal_the_double_precision_sums(monkeypat
         keep = []
         ToAEstimator.doppler_spectra(cs, np.array([-50.0, 0.0, 50.0]), tc, None, keep)
         assert len(keep) == len(cs.groups)
-        single = _SingleSpectra(cs, keep)
+        single = SingleSpectra(cs, keep)
         w = np.exp(-2j * np.pi * 37.0 * tc)
         want = np.einsum("b,abk->ak", w, cs.dense)
         got = single.combine(w)
