@@ -330,7 +330,7 @@ def spatial_dof(x: np.ndarray, hermitian: bool = False) -> float:
 
     :param x: [num_ant, num_samples] complex, or a sequence of such blocks (their samples
         pooled, as if concatenated)
-    :param hermitian: R by BLAS's Hermitian rank-k update (:func:`spatial_covariance`; the
+    :param hermitian: R by BLAS's Hermitian rank-k update (:func:`spatial_covariance_stats`; the
         shortcut ``dofherk``), else by the products ``x x^H`` (the reference)
     :returns: float in [2, 2 num_ant] (2 num_ant without energy)
     """
