@@ -31,6 +31,22 @@ The shortcuts, by name:
   those REs reach only the relay's AGC, whose input power there, ``abs(h x + n)^2`` with
   circularly symmetric noise n, has the same distribution for every unit-modulus x, and REs the
   UE never reads (:class:`~veriloc_rt.attacks.threats.MeaconingThreat`).
+* ``toa32``: the ToA search's zero-padded delay profiles (the Doppler-compensated profile whose
+  peak detects a TRP and the first path's windowed profile) transformed in single precision
+  (:class:`~veriloc_rt.phy.receiver.toa.ToAEstimator`), as its Doppler scan and delay-Doppler
+  map already are: the same sums, rounded to 2^-24 relative instead of 2^-53; the ToA's
+  sub-sample refinement, the peak and the snapshots stay in double precision.
+* ``dofherk``: the spatial covariance R = sum x x^H behind the noise's degrees of freedom (of
+  the PRS REs' cross-spectra and of the free symbols) and the free symbols' mean power (tr R
+  over their count) by BLAS's Hermitian rank-k update ``zherk`` (one triangle, no conjugated
+  copy of the samples) instead of the products ``x @ x.conj().T`` and a separate mean of
+  ``|x|^2`` (:func:`~veriloc_rt.phy.receiver.toa.spatial_covariance_stats`): the same sums in
+  another order (float64 rounding only).
+* ``spectra32``: the ToA search's sums of the cross-spectra over the blocks (at a Doppler) and
+  over the bins (at a lag: the per-block correlations, the AoA's snapshots) taken on the
+  single-precision copy of the spectra its Doppler scan already makes, half the memory read of
+  the double-precision spectra (:class:`~veriloc_rt.phy.receiver.toa.ToAEstimator`): the same
+  sums of the products rounded to 2^-24 relative; results in double precision.
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -46,7 +62,8 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 #: the environment variable naming the shortcuts to leave out
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
-SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "relaytags")
+SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "relaytags", "toa32", "dofherk",
+             "spectra32")
 
 
 def reference(name: str) -> bool:

@@ -36,6 +36,7 @@ from ..receiver.sync import frequency_cross_spectra_many, noise_estimates, time_
 from ..receiver.tag_verifier import TagVerifier, estimate_tag_channel
 from ..receiver.toa import CrossSpectra, ToAEstimate, ToAEstimator
 from ..receiver.uplink import UplinkPositioner, UplinkResult
+from ..shortcuts import reference
 from .downlink import KeptDraw, Received
 
 __all__ = ["AngleStage", "Angles", "FixStage", "RangeOverbound", "TagStage", "Timing",
@@ -78,6 +79,8 @@ class TimingStage:
         #: [14, 1] bool, the symbols the noise estimates read
         self.free = np.array([s not in self.busy_symbols for s in range(14)])[:, None]
         self.noise_var = float(noise_var)
+        #: the noise estimates by a Hermitian rank-k update (shortcut ``dofherk``)
+        self.hermitian = not reference("dofherk")
         #: the last call on a grid without an adversary: (grid, replicas, nv, dof, estimates,
         #: spectra), what a call on that grid plus an adversary confined to some REs reuses
         self._benign: tuple | None = None
@@ -99,7 +102,7 @@ class TimingStage:
         if reuse is not None:
             nv, dof = reuse[2], reuse[3]
         else:
-            nv, dof = noise_estimates(grid, self.busy_symbols)
+            nv, dof = noise_estimates(grid, self.busy_symbols, self.hermitian)
             nv = nv if np.isfinite(nv) else self.noise_var
         occ = list(occupied) if occupied is not None else [None] * len(replicas)
         fresh = [j for j, rep in enumerate(replicas)

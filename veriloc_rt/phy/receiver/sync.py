@@ -23,7 +23,7 @@ import scipy.fft as sfft
 from ..channel import (as_slice, kept, kept_by_id, occupancy_groups, subcarrier_frequencies,
                        symbol_layout)
 from ..nr.ofdm import OFDM
-from .toa import CrossSpectra, spatial_dof
+from .toa import CrossSpectra, spatial_covariance_stats, spatial_dof
 
 __all__ = ["frequency_cross_spectra", "frequency_cross_spectra_many", "time_cross_spectra",
            "noise_variance", "noise_estimates", "noise_dof", "block_index"]
@@ -243,14 +243,21 @@ def _mean_power(x: np.ndarray) -> float:
     return float(np.mean(p))
 
 
-def noise_estimates(rx_grid: np.ndarray, busy_symbols) -> tuple[float, float]:
+def noise_estimates(rx_grid: np.ndarray, busy_symbols, hermitian: bool = False) -> tuple[float, float]:
     """``(noise_variance(rx_grid, busy_symbols), noise_dof(rx_grid, busy_symbols))``, the same
-    values from one gather of the free symbols."""
+    values from one gather of the free symbols.
+
+    :param hermitian: both from one Hermitian rank-k update of the free symbols (the shortcut
+        ``dofherk``: the mean power is tr R / (A N), R's trace; the same sums in another order)
+    """
     a = rx_grid.shape[0]
     free = _free_symbols(rx_grid, busy_symbols)
     if not free:
         return float("nan"), 2.0 * a
     x = rx_grid[..., free, :]
+    if hermitian and x.dtype == np.complex128:
+        tr, dof = spatial_covariance_stats(x.reshape(a, -1), True)
+        return tr / x.size, dof
     return _mean_power(x), spatial_dof(x.reshape(a, -1))
 
 

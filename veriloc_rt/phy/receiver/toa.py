@@ -39,10 +39,12 @@ from functools import cached_property
 
 import numpy as np
 import scipy.fft as sfft
+from scipy.linalg.blas import zherk as _zherk
 from scipy.special import chdtri   # chi-square inverse survival function (a ufunc: 40x
                                    # faster than scipy.stats.chi2.isf, same values)
 
 from ..channel import as_slice, kept, occupancy_groups
+from ..shortcuts import reference
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
@@ -246,6 +248,40 @@ class _Derotated:
     combined: np.ndarray
 
 
+class SingleSpectra:
+    """:meth:`CrossSpectra.combine` and :meth:`CrossSpectra.at_delay` from the single-precision
+    copies of the spectra that the Doppler scan makes (:meth:`ToAEstimator.doppler_spectra`'s
+    ``keep``; the shortcut ``spectra32``): the same sums of the products rounded to complex64,
+    half the memory read of the complex128 spectra; results in complex128.
+
+    :param cs: the cross-spectra; parts: per group of ``cs.groups`` [B_g, A, K_g] complex64
+    """
+
+    def __init__(self, cs: CrossSpectra, parts: list):
+        self.cs, self.parts = cs, parts
+
+    def combine(self, weights: np.ndarray) -> np.ndarray:
+        """sum_b w_b S_abk: [B] -> [A, K] complex128 (products in single precision)."""
+        cs = self.cs
+        out = np.zeros((cs.num_ant, cs.freqs.size), dtype=np.complex128)
+        w = weights.astype(np.complex64)
+        for (blocks, _, _), ix, q in zip(cs.groups, cs.bin_index, self.parts):
+            out[:, ix] += (w[blocks] @ q.reshape(blocks.size, -1)).reshape(q.shape[1:])
+        return out
+
+    def at_delay(self, tau: float, e: np.ndarray | None = None) -> np.ndarray:
+        """c_ab(tau) = sum_k S_abk e^{j2pi f_k tau}: [A, B] complex128 (products in single
+        precision). :param e: [K] complex128, e^{j2pi f_k tau} when the caller has it already"""
+        cs = self.cs
+        if e is None:
+            e = np.exp(2j * np.pi * cs.freqs * tau)
+        e = e.astype(np.complex64)
+        out = np.zeros((cs.num_ant, cs.ref_power.shape[0]), dtype=np.complex128)
+        for (blocks, _, _), ix, q in zip(cs.groups, cs.bin_index, self.parts):
+            out[:, blocks] = (q.reshape(-1, q.shape[-1]) @ e[ix]).reshape(q.shape[:2]).T
+        return out
+
+
 #: per-thread transform inputs of :func:`_padded` (a chain may run in several threads of a Dask
 #: worker)
 _WORK = threading.local()
@@ -282,7 +318,7 @@ def _is_view(a: np.ndarray, b: np.ndarray) -> bool:
             and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
 
 
-def spatial_dof(x: np.ndarray) -> float:
+def spatial_dof(x: np.ndarray, hermitian: bool = False) -> float:
     """Effective chi-square degrees of freedom of sum_a |x_a|^2 for zero-mean samples x.
 
     Satterthwaite's two-moment match of sum_i lambda_i chi2(2) / 2, lambda_i the eigenvalues of
@@ -294,15 +330,38 @@ def spatial_dof(x: np.ndarray) -> float:
 
     :param x: [num_ant, num_samples] complex, or a sequence of such blocks (their samples
         pooled, as if concatenated)
+    :param hermitian: R by BLAS's Hermitian rank-k update (:func:`spatial_covariance_stats`; the
+        shortcut ``dofherk``), else by the products ``x x^H`` (the reference)
     :returns: float in [2, 2 num_ant] (2 num_ant without energy)
+    """
+    return spatial_covariance_stats(x, hermitian)[1]
+
+
+def spatial_covariance_stats(x: np.ndarray, hermitian: bool = False) -> tuple[float, float]:
+    """``(tr R, spatial_dof)`` of the samples ``x`` (as :func:`spatial_dof`), R = sum_n x_n x_n^H
+    unscaled: tr R is sum |x|^2 over every antenna and sample.
+
+    ``hermitian``: complex128 blocks through ``zherk`` (one triangle of R, no conjugated copy of
+    the samples, half the products), ||R||_F^2 from the diagonal and twice the strict triangle;
+    the same sums as the reference's ``x @ x.conj().T`` in another order (rounding only).
     """
     blocks = [x] if isinstance(x, np.ndarray) else list(x)
     a = blocks[0].shape[0]
-    r = sum(b @ b.conj().T for b in blocks)          # [A, A]; the 1/N scale cancels in the ratio
-    tr = float(r.trace().real)
+    if hermitian and all(b.dtype == np.complex128 for b in blocks):
+        r = None
+        for b in blocks:   # b.T [N, A] (Fortran order for a C-ordered b, no copy); trans=2: b.T^H b.T
+            r = (_zherk(1.0, b.T, trans=2) if r is None
+                 else _zherk(1.0, b.T, beta=1.0, c=r, trans=2, overwrite_c=1))
+        d = r.diagonal().real                        # conj(R)'s upper triangle: the same moduli
+        tr = float(d.sum())
+        fro = float((d * d).sum()) + 2.0 * float((np.abs(np.triu(r, 1)) ** 2).sum())
+    else:
+        r = sum(b @ b.conj().T for b in blocks)      # [A, A]; the 1/N scale cancels in the ratio
+        tr = float(r.trace().real)
+        fro = float((np.abs(r) ** 2).sum())
     if tr <= 0:
-        return 2.0 * a
-    return float(_clip(2.0 * tr ** 2 / float((np.abs(r) ** 2).sum()), 2.0, 2.0 * a))
+        return tr, 2.0 * a
+    return tr, float(_clip(2.0 * tr ** 2 / fro, 2.0, 2.0 * a))
 
 
 def _median(x: np.ndarray) -> float:
@@ -484,6 +543,14 @@ class ToAEstimator:
         #: Doppler hypotheses [V] float64, Hz (None without a scan)
         self.hypotheses = (np.arange(-cfg.doppler_max_hz, cfg.doppler_max_hz + 1e-9, cfg.doppler_step_hz)
                            if cfg.doppler_max_hz > 0 else None)
+        #: the zero-padded profiles' transform precision: complex64 (shortcut ``toa32``), or
+        #: None, the spectra's (complex128: the reference)
+        self.profile_dtype = None if reference("toa32") else np.dtype(np.complex64)
+        #: the spatial covariance by a Hermitian rank-k update (shortcut ``dofherk``)
+        self.hermitian = not reference("dofherk")
+        #: the spectra's combinations over blocks and bins from the scan's single-precision
+        #: copies (shortcut ``spectra32``)
+        self.single_spectra = not reference("spectra32")
         self._layouts: dict = {}
 
     # -- helpers ---------------------------------------------------------------------------
@@ -526,9 +593,10 @@ class ToAEstimator:
 
     @staticmethod
     def lag_power(g: np.ndarray, idx: np.ndarray, lags: np.ndarray, n_up: int,
-                  win: np.ndarray | None = None) -> np.ndarray:
+                  win: np.ndarray | None = None, dtype=None) -> np.ndarray:
         """Antenna-summed power of the profiles on the lag grid, sum_a |c_a(tau)|^2:
-        [..., num_ant, num_bins] -> [..., num_lags] float64 (transform in g's precision).
+        [..., num_ant, num_bins] -> [..., num_lags] float64 (transform in g's precision, or in
+        ``dtype``'s: complex64 or complex128).
 
         Only the power is used, so the bins are transformed from the lowest one at index 0: that
         multiplies every profile by one phase ramp over the lags, invisible in |.|^2, and for
@@ -542,7 +610,8 @@ class ToAEstimator:
         ``g`` may already be the head of the zero-padded input (:meth:`padded_input`, which
         :meth:`doppler_spectra` can write into): it is then transformed where it is.
         """
-        dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
+        if dtype is None:
+            dtype = np.complex64 if g.dtype == np.complex64 else np.complex128
         pos = idx - idx.min()
         plan = zoom_plan(pos, int(lags[0]), lags.size, n_up, np.dtype(dtype))
         if plan is not None and lags[-1] - lags[0] == lags.size - 1:
@@ -579,7 +648,7 @@ class ToAEstimator:
 
     @staticmethod
     def doppler_spectra(cs: CrossSpectra, nus: np.ndarray, tc: np.ndarray,
-                        out: np.ndarray | None = None) -> np.ndarray:
+                        out: np.ndarray | None = None, keep: list | None = None) -> np.ndarray:
         """sum_b e^{-j2pi nu t_b} S_abk for every hypothesis nu: [V, A, K] complex64.
 
         Single precision: the maps built from it only rank hypotheses and cells against
@@ -593,6 +662,8 @@ class ToAEstimator:
 
         :param out: [V, A, K] complex64 to write into (e.g. the head of :meth:`padded_input`),
             else a new array
+        :param keep: a list to append each group's single-precision spectra to, [B_g, A, K_g]
+            complex64 in the order of ``cs.groups`` (what :class:`SingleSpectra` reads)
         """
         rot = _doppler_rotations(nus, tc)                                             # [V, B]
         a_ = cs.num_ant
@@ -603,6 +674,8 @@ class ToAEstimator:
         for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
             q = np.empty((blocks.size, a_, bins.size), dtype=np.complex64)   # [B_g, A, K_g]
             q[...] = part.transpose(1, 0, 2)                                  # cast and reorder in one pass
+            if keep is not None:
+                keep.append(q)
             prod = (rot[:, blocks] @ q.reshape(blocks.size, -1)).reshape(-1, a_, bins.size)
             if cs.bins_overlap:
                 out[:, :, ix] += prod
@@ -694,7 +767,10 @@ class ToAEstimator:
             idx1, lags1, n1 = layout.scan.idx, layout.scan.lags, layout.scan.size
             # contiguous bins: the spectra written straight into the scan transform's input
             pad = self.padded_input((nus.size, a_n), idx1, n1, np.complex64)
-            g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size])
+            kept32 = [] if self.single_spectra else None
+            g_nu = self.doppler_spectra(cs, nus, tc, None if pad is None else pad[..., :idx1.size],
+                                        kept32)
+            src = cs if kept32 is None else SingleSpectra(cs, kept32)   # combine, at_delay
             smap = self.lag_power(g_nu, idx1, lags1, n1)                             # [V, L1]
             metric = smap.max(axis=-1)
             i = int(metric.argmax())
@@ -702,13 +778,14 @@ class ToAEstimator:
             if 0 < i < nus.size - 1:
                 nu += cfg.doppler_step_hz * _parabola(*metric[i - 1:i + 2])
         else:
-            nu, g_nu, nus, smap = 0.0, None, None, None
+            nu, g_nu, nus, smap, src = 0.0, None, None, None, cs
         # 2. residual phase correction from the per-block peaks
         rot = np.exp(-2j * np.pi * nu * tc)
-        g = cs.combine(rot)
-        m_rect = self.lag_power(g, idx, lags, n_up)
+        g = src.combine(rot)
+        pd = self.profile_dtype
+        m_rect = self.lag_power(g, idx, lags, n_up, dtype=pd)
         tau_pk = float(lags[int(m_rect.argmax())] * step)
-        x = cs.at_delay(tau_pk) * rot                                              # [A, B]
+        x = src.at_delay(tau_pk) * rot                                              # [A, B]
         ref = x.sum(axis=1)
         z = (x * ref.conj()[:, None]).sum(axis=0)                                # [B]
         w = np.abs(z)
@@ -720,15 +797,15 @@ class ToAEstimator:
             if abs(dnu) <= cfg.doppler_step_hz:
                 nu += dnu
                 rot = np.exp(-2j * np.pi * nu * tc)
-                g = cs.combine(rot)
-                m_rect = self.lag_power(g, idx, lags, n_up)
+                g = src.combine(rot)
+                m_rect = self.lag_power(g, idx, lags, n_up, dtype=pd)
         # 3. detection against the exact noise floor
         # the floor: the thermal one from ``noise_var`` (free symbols), or, when larger, a CFAR
         # estimate from the median of the delay profile. Interference confined to the PRS REs
         # (a spoofer's standard PRS against an encrypted replica, a relay) is absent from the
         # free symbols but spreads over every lag of the profile like noise; its spatial
         # structure sets the degrees of freedom (min with the caller's free-symbol estimate)
-        dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups]))
+        dof = min(dof, spatial_dof([q.reshape(a_n, -1) for _, _, q in cs.groups], self.hermitian))
         nv = max(float(noise_var), 0.0)
         sum_ref = float(cs.bin_power.sum())
         floor_rect = a_n * nv * sum_ref
@@ -743,17 +820,18 @@ class ToAEstimator:
         detected = bool(snr_db >= max(cfg.hearability_db, 10 * np.log10(gamma_det)))
         if detected:
             scan = _DopplerScan(g_nu, nus, self._reach(smap, layout)) if smap is not None else None
-            tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof)
+            tau, d = self._pick(cs, layout, m_rect, scan, _Derotated(nu, rot, g), tc, nv, dof, src)
             nu, rot, g = d.doppler_hz, d.rot, d.combined
         else:   # no ToA to pick: the peak and snapshots at the strongest lag
             tau = float(lags[int(m_rect.argmax())] * step)
         e = np.exp(2j * np.pi * cs.freqs * tau)              # [K], the exact profile's phase ramp
         return ToAEstimate(detected=detected, toa_s=float(tau) if detected else float("nan"),
                            doppler_hz=float(nu), peak_snr_db=float(snr_db),
-                           peak=g @ e, snapshots=cs.at_delay(tau, e) * rot, noise_var=nv)
+                           peak=g @ e, snapshots=src.at_delay(tau, e) * rot, noise_var=nv)
 
     def _pick(self, cs: CrossSpectra, layout: _Layout, m_rect: np.ndarray, scan: _DopplerScan | None,
-              start: _Derotated, tc: np.ndarray, nv: float, dof: float) -> tuple[float, _Derotated]:
+              start: _Derotated, tc: np.ndarray, nv: float, dof: float,
+              src: "CrossSpectra | SingleSpectra | None" = None) -> tuple[float, _Derotated]:
         """Steps 4 and 5 for a detected BS: the ToA, and the derotation (Doppler, block phases,
         combined spectra), ``start`` or, when the first path's own Doppler replaces the scan's,
         the first path's.
@@ -762,7 +840,8 @@ class ToAEstimator:
             profile's unwindowed power
         :param scan: the Doppler scan (None without one)
         :param tc: [B] float64, s, block times about their mean; nv: per-RE noise variance;
-            dof: the noise's chi-square degrees of freedom
+            dof: the noise's chi-square degrees of freedom; src: what combines the spectra
+            over the blocks (``cs``, or its single-precision copies: ``spectra32``; None: ``cs``)
         """
         cfg = self.cfg
         a_n = cs.num_ant
@@ -797,14 +876,14 @@ class ToAEstimator:
                 if abs(nu_fp - nu) > self.doppler_tolerance_hz(tc):   # the first path's own Doppler
                     nu = nu_fp
                     rot = np.exp(-2j * np.pi * nu * tc)
-                    g = cs.combine(rot)
-                metric = self.lag_power(g, idx, lags1, n_up, win)   # the map's lags: i1's peak
+                    g = (cs if src is None else src).combine(rot)
+                metric = self.lag_power(g, idx, lags1, n_up, win, self.profile_dtype)   # i1's peak
                 tau1 = lags1[i1] / (n1 * cs.bin_spacing_hz)
                 i = int(_clip(round(tau1 / step) - lags[0], 0, metric.size - 1))
                 while 0 < i < metric.size - 1 and (metric[i + 1] > metric[i] or metric[i - 1] > metric[i]):
                     i += 1 if metric[i + 1] > metric[i] else -1
             else:
-                metric = self.lag_power(g * win, idx, lags, n_up)
+                metric = self.lag_power(g * win, idx, lags, n_up, dtype=self.profile_dtype)
                 i = self._first_crossing(metric, floor, 1, dof)
         # 5. sub-sample refinement
         if 0 < i < metric.size - 1:
