@@ -43,7 +43,7 @@ from ..propagation.cir import CIR, array_response
 __all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "delay_groups",
            "grouped_frequency_response", "occupancy_groups",
-           "group_index", "apply_frequency", "apply_time",
+           "group_index", "REPlan", "apply_frequency", "apply_time",
            "add_noise", "standard_normals", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
 
@@ -343,7 +343,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
     with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
     H_l X_l = 0; summed over each link's distinct delays (:func:`grouped_frequency_response`)
-    unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call).
+    unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call). The
+    groups' REs form one flat index per occupancy pattern (:class:`REPlan`, kept), and the
+    response on them one array (:meth:`_LinkResponses.on`, kept): one gather, product and
+    scatter a link, the same values as group by group.
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
@@ -361,7 +364,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     k_n = ofdm.num_subcarriers
     shape = (links.num_ant, t.size, k_n)
     out = None   # made by the first link: a dense one's product is it (no zeros to add to)
-    touched = np.zeros((t.size, k_n), dtype=bool)   # REs of out some link has added to
+    touched = np.zeros(t.size * k_n, dtype=bool)   # REs of out (flat) some link has added to
     flat_t = t.ravel()
     grouped = not reference("delays")
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
@@ -371,8 +374,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         response = _LinkResponses(one, t0, grouped)
         # a dense grid (a jammer's noise) gains nothing from groups
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
-        groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
-        if groups is None:
+        plan = _plan_of(occ)
+        if plan is None:
             v = response(f, flat_t, amp) * x[None]         # (amp * h) * x
             if out is None:   # 0 + v: v with -0.0 made +0.0
                 out = np.add(v, 0.0, out=v)
@@ -382,15 +385,15 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
             continue
         if out is None:
             out = np.zeros(shape, dtype=np.complex128)
-        for sym, sc in groups:
-            ix = group_index(sym, sc)
-            # a H X: the values of (amp * h) * x
-            v = response(f[sc], flat_t[sym], amp) * x[ix][None]                  # [A, Tg, Kg]
-            if touched[ix].any():
-                out[:, ix[0], ix[1]] += v
-            else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
-                out[:, ix[0], ix[1]] = np.add(v, 0.0, out=v)
-                touched[ix] = True
+        idx = plan.index
+        # a H X on the link's REs, group by group: the values of (amp * h) * x
+        v = response.on(plan, f, flat_t, amp) * x.reshape(-1)[idx][None]        # [A, n]
+        flat = out.reshape(links.num_ant, -1)
+        if touched[idx].any():   # (0 + v on the untouched ones: v + 0, the same bits)
+            flat[:, idx] += v
+        else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
+            flat[:, idx] = np.add(v, 0.0, out=v)
+        touched[idx] = True
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
     return out.reshape(links.num_ant, *t.shape, k_n)
@@ -438,22 +441,63 @@ class _LinkResponses:
             h.flags.writeable = False
         return h
 
+    def on(self, plan: "REPlan", freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
+        """``scale`` H of the link on the REs of ``plan``, in its index's order: [A, n]
+        complex128 (read-only), each group's block the values :meth:`__call__` gives it
+        (``freqs``: [K], ``times``: [T], the grid's)."""
+        key = (plan, times.tobytes(), freqs.tobytes(), float(scale))
+        h = self.kept.get(key)
+        if h is None:
+            a = self.one.num_ant
+            parts = [np.multiply(frequency_response(self.one, freqs[sc], times[sym], self.t0,
+                                                    self.grouped)[0], scale).reshape(a, -1)
+                     for sym, sc in plan.groups]
+            h = self.kept[key] = (np.concatenate(parts, axis=1) if parts
+                                  else np.zeros((a, 0), dtype=np.complex128))
+            h.flags.writeable = False
+        return h
 
-_GROUPS: dict[bytes, list] = {}
-#: the groups of read-only masks by the array owning their memory and where they lie in it
+
+class REPlan:
+    """The occupied REs of a grid [T, K] as :func:`occupancy_groups` groups them, and as one
+    flat index into the T K plane, group after group, each group row-major (the order
+    ``x[group_index(rows, cols)].ravel()`` reads them in).
+
+    groups : list of (rows [R] int64, cols [C] int64); index : [n] int64, read-only
+    """
+
+    __slots__ = ("groups", "index")
+
+    def __init__(self, groups: list, num_cols: int):
+        self.groups = groups
+        idx = (np.concatenate([(rows[:, None] * num_cols + cols[None, :]).ravel()
+                               for rows, cols in groups]) if groups else np.zeros(0, np.int64))
+        idx.flags.writeable = False
+        self.index = idx
+
+
+_GROUPS: dict[bytes, REPlan | None] = {}
+#: the plans of read-only masks by the array owning their memory and where they lie in it
 _GROUPS_BY_MEMORY: dict[tuple, tuple] = {}
 
 
-def _groups_of(occ: np.ndarray) -> list | None:
-    """:func:`occupancy_groups` of ``occ``, kept per pattern (a run's grids share a few: the
-    PRS and tag REs of each BS, fixed by the config). A read-only mask (a transmitter's kept
-    one: the same memory at every call) is found by its memory, without reading its pattern."""
+def _plan_of(occ: np.ndarray) -> REPlan | None:
+    """The :class:`REPlan` of ``occ`` [T, K] (None: more than half of it occupied, a dense
+    grid: no groups), kept per pattern (a run's grids share a few: the PRS and tag REs of each
+    BS, fixed by the config). A read-only mask (a transmitter's kept one: the same memory at
+    every call) is found by its memory, without reading its pattern."""
+    def make():
+        if 2 * np.count_nonzero(occ) > occ.size:
+            return None
+        groups = occupancy_groups(occ)
+        return REPlan(groups, occ.shape[1]) if groups is not None else None
+
     owner = occ if occ.base is None else occ.base
+    by_value = lambda: kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), make)  # noqa: E731
     if occ.flags.writeable or not isinstance(owner, np.ndarray) or owner.flags.writeable:
-        return kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))
-    return kept_by_id(_GROUPS_BY_MEMORY, (owner,), lambda: kept(
-        _GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ)),
-        key=(occ.__array_interface__["data"][0], occ.shape, occ.strides))
+        return by_value()
+    return kept_by_id(_GROUPS_BY_MEMORY, (owner,), by_value,
+                      key=(occ.__array_interface__["data"][0], occ.shape, occ.strides))
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,

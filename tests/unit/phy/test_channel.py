@@ -333,3 +333,33 @@ def test_a_links_response_is_computed_once_and_kept_exactly(frame):
     assert len(calls) == n_first
     np.testing.assert_array_equal(again, fresh)
     np.testing.assert_array_equal(first, apply_frequency(links, grids, amps, ofdm, slots, 0.5e-6))
+
+
+def test_re_plan_indexes_each_groups_res_in_their_order():
+    """REPlan: the flat index reads a grid's occupied REs group after group, each group's block
+    row-major (second method: the blocks x[group_index(rows, cols)] concatenated; exact), every
+    occupied RE once; a link applied through it (apply_frequency) gives the scatter-add
+    reference's bits, on a tagged PRS frame."""
+    from veriloc_rt.phy.channel import REPlan, group_index, occupancy_groups
+    from veriloc_rt.phy.security.keys import simulated_keys
+
+    nr = NRConfig(slots_per_frame=2)
+    ofdm = OFDM(nr)
+    slots = range(2)
+    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="hmac"), (1, 2, 3),
+                        simulated_keys((1, 2, 3), np.random.default_rng(0)))
+    grids = tx(0, slots)
+    x = grids[1].reshape(-1, ofdm.num_subcarriers)
+    groups = occupancy_groups(x != 0)
+    plan = REPlan(groups, x.shape[1])
+    want = np.concatenate([x[group_index(rows, cols)].ravel() for rows, cols in groups])
+    np.testing.assert_array_equal(x.ravel()[plan.index], want)
+    assert np.array_equal(np.sort(plan.index), np.flatnonzero(x != 0))     # each RE once
+    assert not plan.index.flags.writeable
+    rng = np.random.default_rng(12)
+    links = Links(1e-6 + rng.uniform(0, 2e-6, (3, 3)), rng.standard_normal((3, 2, 3)) + 1j * rng.standard_normal((3, 2, 3)),
+                  rng.uniform(-150, 150, (3, 3)), np.ones((3, 3), dtype=bool))
+    amps = np.array([1.0, 0.5, 2.0])
+    got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
+    want = _scatter_add_reference(links, grids, amps, ofdm, slots, 0.9e-6)
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
