@@ -40,7 +40,7 @@ from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
 
-__all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
+__all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "draw_grid_noise_slots", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "delay_groups",
            "grouped_frequency_response", "occupancy_groups",
            "group_index", "REPlan", "apply_frequency", "apply_time",
@@ -609,6 +609,55 @@ def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_ax
     n = np.moveaxis(n, 0, major_axis)
     n *= np.sqrt(variance / 2.0)
     return n
+
+
+def draw_grid_noise_slots(shape: tuple, read: np.ndarray | None, variance: float,
+                          rng: np.random.Generator, single: bool = False) -> tuple[np.ndarray, list]:
+    """The noise :func:`draw_grid_noise_on` draws (``read`` given) or :func:`draw_noise` with
+    ``major_axis`` 1 (``read`` None: every RE), the same values from the same generator state,
+    drawn one slot after the other, and the generator's state after each slot's draws: the
+    noise of the first S' slots of a grid is the first S' slots of this, and the generator
+    moved past them is the state after slot S' - 1 (the draws run slot-major, and NumPy's
+    normals carry nothing from one call to the next but the generator's state).
+
+    :param shape: (A, S, 14, K), the grid's
+    :param read: [S', 14, K] bool with S' >= S (its first S slots count), or None
+    :param single: single-precision normals (:func:`standard_normals`)
+    :returns: noise [A, S, 14, K] complex128 (a view of slot-major memory, as the two give
+        it); states: [S] the generator's state (``bit_generator.state``) after each slot
+    """
+    a, s = shape[0], shape[1]
+    rest = tuple(shape[2:])
+    per_slot = a * int(np.prod(rest))
+    if read is None:
+        idx = None
+        bounds = np.arange(s + 1) * per_slot
+    else:
+        idx = _read_index(read, s, a, rest)
+        bounds = np.searchsorted(idx, np.arange(s + 1) * per_slot)
+    total = int(bounds[-1])
+    scale = np.sqrt(variance / 2.0)
+    z = np.empty((total, 2), dtype=np.float32 if single else np.float64)
+    states = []
+    for i in range(s):
+        if bounds[i + 1] > bounds[i]:
+            if single:
+                rng.standard_normal(dtype=np.float32, out=z[bounds[i]:bounds[i + 1]])
+            else:
+                rng.standard_normal(out=z[bounds[i]:bounds[i + 1]])
+        states.append(rng.bit_generator.state)
+    # as standard_normals scales them: float32 draws times scale into float64, float64 in place
+    if single:
+        n = np.empty(total, dtype=np.complex128)
+        np.multiply(z, scale, out=n.view(np.float64).reshape(total, 2), dtype=np.float64)
+    else:
+        n = z.view(np.complex128)[:, 0]
+        n *= scale
+    if idx is None:
+        return np.moveaxis(n.reshape((s, a) + rest), 0, 1), states
+    out = np.zeros((s, a) + rest, dtype=np.complex128)
+    out.reshape(-1)[idx] = n
+    return np.moveaxis(out, 0, 1), states
 
 
 #: the flat indices of read masks, by the mask's memory (read-only masks only)
