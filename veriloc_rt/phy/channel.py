@@ -224,7 +224,7 @@ def subcarrier_frequencies(ofdm: OFDM) -> np.ndarray:
 
 
 def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: float,
-                       grouped: bool = False) -> np.ndarray:
+                       grouped: bool = False, groups: list | None = None) -> np.ndarray:
     """H[link, a, t, k] = sum_p g_ap exp(-j 2 pi f_k (tau_p - t0)) exp(j 2 pi f_D,p t).
 
     With ``grouped`` (the shortcut ``delays`` of :mod:`veriloc_rt.phy.shortcuts`) the sum runs
@@ -237,10 +237,12 @@ def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: f
     reference, to the bit).
 
     :param freqs: [K] float64, Hz; times: [T] float64, s (absolute)
+    :param groups: with ``grouped``, each link's :func:`delay_groups` when the caller has them
     :returns: [num_links, num_ant, T, K] complex128
     """
     if grouped:
-        groups = [delay_groups(links.delays[li], links.valid[li]) for li in range(links.num_links)]
+        if groups is None:
+            groups = [delay_groups(links.delays[li], links.valid[li]) for li in range(links.num_links)]
         if any(taus.size < paths.size for taus, paths, _ in groups):
             return grouped_frequency_response(links, freqs, times, t0, groups)
     rel = np.where(links.valid, links.delays - t0, 0.0)
@@ -401,10 +403,13 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
 
 #: per thread (a chain may run in several threads of a Dask worker): the frequency responses
 #: of the last links applied, by link and then by REs (:class:`_LinkResponses`)
-_RESPONSES = threading.local()
-#: links whose responses are kept (a point applies a few: its serving links, the adversary's
-#: link to the UE and from the serving BSs, the uplinks)
-RESPONSES_MAX = 16
+KEPT_RESPONSES = threading.local()
+#: links whose responses are kept (a point applies a few tens: its serving links, the
+#: adversary's link to the UE and from the serving BSs, the uplinks; with 9 TRPs 28, which
+#: a store of 16 dropped before the point's last chain came back to them)
+RESPONSES_MAX = 64
+#: bytes of kept responses above which the least recently used links' are dropped
+RESPONSES_MAX_BYTES = 256 * 2 ** 20
 
 
 class _LinkResponses:
@@ -414,20 +419,57 @@ class _LinkResponses:
     numbers give the same response): the chains of a point
     (standard, DS-tagged and encrypted PRS, on the same REs) and the adversary's scenarios apply
     the same links to the same REs, and compute each response once. A kept response is
-    read-only."""
+    read-only. The links are kept least recently used first out (:data:`RESPONSES_MAX`,
+    :data:`RESPONSES_MAX_BYTES`); the link's delay groups are found once for all its REs."""
 
     def __init__(self, one: Links, t0: float, grouped: bool = False):
-        store = getattr(_RESPONSES, "links", None)
+        local = KEPT_RESPONSES
+        store = getattr(local, "links", None)
         if store is None:
-            store = _RESPONSES.links = {}
+            store = local.links = {}
+            local.nbytes, local.total = {}, 0
         key = (one.delays.tobytes(), one.gains.tobytes(), one.doppler.tobytes(),
                one.valid.tobytes(), float(t0), bool(grouped))
         self.one, self.t0, self.grouped = one, float(t0), bool(grouped)
-        self.kept = store.get(key)
-        if self.kept is None:
-            if len(store) >= RESPONSES_MAX:
-                store.pop(next(iter(store)))   # the oldest link
-            self.kept = store[key] = {}
+        self.key = key
+        self._delay_groups = None
+        kept = store.pop(key, None)   # put back last: the most recently used
+        if kept is None:
+            while len(store) >= RESPONSES_MAX:
+                self._drop(next(iter(store)))   # the least recently used link
+            kept = {}
+            local.nbytes[key] = 0
+        store[key] = kept
+        self.kept = kept
+
+    @staticmethod
+    def _drop(key) -> None:
+        local = KEPT_RESPONSES
+        local.links.pop(key)
+        local.total -= local.nbytes.pop(key)
+
+    def _keep(self, key, h: np.ndarray) -> np.ndarray:
+        h.flags.writeable = False
+        local = KEPT_RESPONSES
+        if self.key not in local.links:   # dropped meanwhile (another link's bytes): back in
+            local.links[self.key] = self.kept
+            local.nbytes[self.key] = sum(a.nbytes for a in self.kept.values())
+            local.total += local.nbytes[self.key]
+        self.kept[key] = h
+        local.nbytes[self.key] += h.nbytes
+        local.total += h.nbytes
+        while local.total > RESPONSES_MAX_BYTES and len(local.links) > 1:
+            oldest = next(iter(local.links))
+            self._drop(oldest if oldest != self.key else list(local.links)[1])
+        return h
+
+    def _groups(self) -> list | None:
+        """The link's :func:`delay_groups` (``grouped`` only), found at the first need."""
+        if not self.grouped:
+            return None
+        if self._delay_groups is None:
+            self._delay_groups = [delay_groups(self.one.delays[0], self.one.valid[0])]
+        return self._delay_groups
 
     def __call__(self, freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
         """``scale`` H[a, t, k] of the link: [A, T, K] complex128 (read-only; the values of
@@ -435,10 +477,9 @@ class _LinkResponses:
         key = (times.tobytes(), freqs.tobytes(), float(scale))
         h = self.kept.get(key)
         if h is None:
-            h = self.kept[key] = np.multiply(frequency_response(self.one, freqs, times, self.t0,
-                                                                self.grouped)[0],
-                                             scale)
-            h.flags.writeable = False
+            h = self._keep(key, np.multiply(frequency_response(self.one, freqs, times, self.t0,
+                                                               self.grouped, self._groups())[0],
+                                            scale))
         return h
 
     def on(self, plan: "REPlan", freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
@@ -449,12 +490,12 @@ class _LinkResponses:
         h = self.kept.get(key)
         if h is None:
             a = self.one.num_ant
+            groups = self._groups()
             parts = [np.multiply(frequency_response(self.one, freqs[sc], times[sym], self.t0,
-                                                    self.grouped)[0], scale).reshape(a, -1)
+                                                    self.grouped, groups)[0], scale).reshape(a, -1)
                      for sym, sc in plan.groups]
-            h = self.kept[key] = (np.concatenate(parts, axis=1) if parts
-                                  else np.zeros((a, 0), dtype=np.complex128))
-            h.flags.writeable = False
+            h = self._keep(key, np.concatenate(parts, axis=1) if parts
+                           else np.zeros((a, 0), dtype=np.complex128))
         return h
 
 
