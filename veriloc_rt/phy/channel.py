@@ -408,8 +408,9 @@ KEPT_RESPONSES = threading.local()
 #: adversary's link to the UE and from the serving BSs, the uplinks; with 9 TRPs 28, which
 #: a store of 16 dropped before the point's last chain came back to them)
 RESPONSES_MAX = 64
-#: bytes of kept responses above which the least recently used links' are dropped
-RESPONSES_MAX_BYTES = 256 * 2 ** 20
+#: bytes of kept responses above which the least recently used links' are dropped (a point of
+#: the paper config or of 9 TRPs keeps 15 MiB)
+RESPONSES_MAX_BYTES = 64 * 2 ** 20
 
 
 class _LinkResponses:
