@@ -409,8 +409,8 @@ KEPT_RESPONSES = threading.local()
 #: a store of 16 dropped before the point's last chain came back to them)
 RESPONSES_MAX = 64
 #: bytes of kept responses above which the least recently used links' are dropped (a point of
-#: the paper config or of 9 TRPs keeps 15 MiB)
-RESPONSES_MAX_BYTES = 64 * 2 ** 20
+#: the paper config or of 9 TRPs at 52 PRBs keeps 15 MiB, at 273 PRBs about 5 times that)
+RESPONSES_MAX_BYTES = 256 * 2 ** 20
 
 
 class _LinkResponses:
