@@ -40,10 +40,10 @@ from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
 
-__all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
+__all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "draw_grid_noise_slots", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
            "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "delay_groups",
            "grouped_frequency_response", "occupancy_groups",
-           "group_index", "apply_frequency", "apply_time",
+           "group_index", "REPlan", "apply_frequency", "apply_time",
            "add_noise", "standard_normals", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
 
 
@@ -224,7 +224,7 @@ def subcarrier_frequencies(ofdm: OFDM) -> np.ndarray:
 
 
 def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: float,
-                       grouped: bool = False) -> np.ndarray:
+                       grouped: bool = False, groups: list | None = None) -> np.ndarray:
     """H[link, a, t, k] = sum_p g_ap exp(-j 2 pi f_k (tau_p - t0)) exp(j 2 pi f_D,p t).
 
     With ``grouped`` (the shortcut ``delays`` of :mod:`veriloc_rt.phy.shortcuts`) the sum runs
@@ -237,10 +237,12 @@ def frequency_response(links: Links, freqs: np.ndarray, times: np.ndarray, t0: f
     reference, to the bit).
 
     :param freqs: [K] float64, Hz; times: [T] float64, s (absolute)
+    :param groups: with ``grouped``, each link's :func:`delay_groups` when the caller has them
     :returns: [num_links, num_ant, T, K] complex128
     """
     if grouped:
-        groups = [delay_groups(links.delays[li], links.valid[li]) for li in range(links.num_links)]
+        if groups is None:
+            groups = [delay_groups(links.delays[li], links.valid[li]) for li in range(links.num_links)]
         if any(taus.size < paths.size for taus, paths, _ in groups):
             return grouped_frequency_response(links, freqs, times, t0, groups)
     rel = np.where(links.valid, links.delays - t0, 0.0)
@@ -343,7 +345,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
     with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
     H_l X_l = 0; summed over each link's distinct delays (:func:`grouped_frequency_response`)
-    unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call).
+    unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call). The
+    groups' REs form one flat index per occupancy pattern (:class:`REPlan`, kept), and the
+    response on them one array (:meth:`_LinkResponses.on`, kept): one gather, product and
+    scatter a link, the same values as group by group.
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
@@ -361,7 +366,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     k_n = ofdm.num_subcarriers
     shape = (links.num_ant, t.size, k_n)
     out = None   # made by the first link: a dense one's product is it (no zeros to add to)
-    touched = np.zeros((t.size, k_n), dtype=bool)   # REs of out some link has added to
+    touched = np.zeros(t.size * k_n, dtype=bool)   # REs of out (flat) some link has added to
     flat_t = t.ravel()
     grouped = not reference("delays")
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
@@ -371,8 +376,8 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         response = _LinkResponses(one, t0, grouped)
         # a dense grid (a jammer's noise) gains nothing from groups
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
-        groups = _groups_of(occ) if 2 * np.count_nonzero(occ) <= occ.size else None
-        if groups is None:
+        plan = _plan_of(occ)
+        if plan is None:
             v = response(f, flat_t, amp) * x[None]         # (amp * h) * x
             if out is None:   # 0 + v: v with -0.0 made +0.0
                 out = np.add(v, 0.0, out=v)
@@ -382,15 +387,15 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
             continue
         if out is None:
             out = np.zeros(shape, dtype=np.complex128)
-        for sym, sc in groups:
-            ix = group_index(sym, sc)
-            # a H X: the values of (amp * h) * x
-            v = response(f[sc], flat_t[sym], amp) * x[ix][None]                  # [A, Tg, Kg]
-            if touched[ix].any():
-                out[:, ix[0], ix[1]] += v
-            else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
-                out[:, ix[0], ix[1]] = np.add(v, 0.0, out=v)
-                touched[ix] = True
+        idx = plan.index
+        # a H X on the link's REs, group by group: the values of (amp * h) * x
+        v = response.on(plan, f, flat_t, amp) * x.reshape(-1)[idx][None]        # [A, n]
+        flat = out.reshape(links.num_ant, -1)
+        if touched[idx].any():   # (0 + v on the untouched ones: v + 0, the same bits)
+            flat[:, idx] += v
+        else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
+            flat[:, idx] = np.add(v, 0.0, out=v)
+        touched[idx] = True
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
     return out.reshape(links.num_ant, *t.shape, k_n)
@@ -398,10 +403,14 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
 
 #: per thread (a chain may run in several threads of a Dask worker): the frequency responses
 #: of the last links applied, by link and then by REs (:class:`_LinkResponses`)
-_RESPONSES = threading.local()
-#: links whose responses are kept (a point applies a few: its serving links, the adversary's
-#: link to the UE and from the serving BSs, the uplinks)
-RESPONSES_MAX = 16
+KEPT_RESPONSES = threading.local()
+#: links whose responses are kept (a point applies a few tens: its serving links, the
+#: adversary's link to the UE and from the serving BSs, the uplinks; with 9 TRPs 28, which
+#: a store of 16 dropped before the point's last chain came back to them)
+RESPONSES_MAX = 64
+#: bytes of kept responses above which the least recently used links' are dropped (a point of
+#: the paper config or of 9 TRPs at 52 PRBs keeps 15 MiB, at 273 PRBs about 5 times that)
+RESPONSES_MAX_BYTES = 256 * 2 ** 20
 
 
 class _LinkResponses:
@@ -411,20 +420,57 @@ class _LinkResponses:
     numbers give the same response): the chains of a point
     (standard, DS-tagged and encrypted PRS, on the same REs) and the adversary's scenarios apply
     the same links to the same REs, and compute each response once. A kept response is
-    read-only."""
+    read-only. The links are kept least recently used first out (:data:`RESPONSES_MAX`,
+    :data:`RESPONSES_MAX_BYTES`); the link's delay groups are found once for all its REs."""
 
     def __init__(self, one: Links, t0: float, grouped: bool = False):
-        store = getattr(_RESPONSES, "links", None)
+        local = KEPT_RESPONSES
+        store = getattr(local, "links", None)
         if store is None:
-            store = _RESPONSES.links = {}
+            store = local.links = {}
+            local.nbytes, local.total = {}, 0
         key = (one.delays.tobytes(), one.gains.tobytes(), one.doppler.tobytes(),
                one.valid.tobytes(), float(t0), bool(grouped))
         self.one, self.t0, self.grouped = one, float(t0), bool(grouped)
-        self.kept = store.get(key)
-        if self.kept is None:
-            if len(store) >= RESPONSES_MAX:
-                store.pop(next(iter(store)))   # the oldest link
-            self.kept = store[key] = {}
+        self.key = key
+        self._delay_groups = None
+        kept = store.pop(key, None)   # put back last: the most recently used
+        if kept is None:
+            while len(store) >= RESPONSES_MAX:
+                self._drop(next(iter(store)))   # the least recently used link
+            kept = {}
+            local.nbytes[key] = 0
+        store[key] = kept
+        self.kept = kept
+
+    @staticmethod
+    def _drop(key) -> None:
+        local = KEPT_RESPONSES
+        local.links.pop(key)
+        local.total -= local.nbytes.pop(key)
+
+    def _keep(self, key, h: np.ndarray) -> np.ndarray:
+        h.flags.writeable = False
+        local = KEPT_RESPONSES
+        if self.key not in local.links:   # dropped meanwhile (another link's bytes): back in
+            local.links[self.key] = self.kept
+            local.nbytes[self.key] = sum(a.nbytes for a in self.kept.values())
+            local.total += local.nbytes[self.key]
+        self.kept[key] = h
+        local.nbytes[self.key] += h.nbytes
+        local.total += h.nbytes
+        while local.total > RESPONSES_MAX_BYTES and len(local.links) > 1:
+            oldest = next(iter(local.links))
+            self._drop(oldest if oldest != self.key else list(local.links)[1])
+        return h
+
+    def _groups(self) -> list | None:
+        """The link's :func:`delay_groups` (``grouped`` only), found at the first need."""
+        if not self.grouped:
+            return None
+        if self._delay_groups is None:
+            self._delay_groups = [delay_groups(self.one.delays[0], self.one.valid[0])]
+        return self._delay_groups
 
     def __call__(self, freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
         """``scale`` H[a, t, k] of the link: [A, T, K] complex128 (read-only; the values of
@@ -432,28 +478,68 @@ class _LinkResponses:
         key = (times.tobytes(), freqs.tobytes(), float(scale))
         h = self.kept.get(key)
         if h is None:
-            h = self.kept[key] = np.multiply(frequency_response(self.one, freqs, times, self.t0,
-                                                                self.grouped)[0],
-                                             scale)
-            h.flags.writeable = False
+            h = self._keep(key, np.multiply(frequency_response(self.one, freqs, times, self.t0,
+                                                               self.grouped, self._groups())[0],
+                                            scale))
+        return h
+
+    def on(self, plan: "REPlan", freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
+        """``scale`` H of the link on the REs of ``plan``, in its index's order: [A, n]
+        complex128 (read-only), each group's block the values :meth:`__call__` gives it
+        (``freqs``: [K], ``times``: [T], the grid's)."""
+        key = (plan, times.tobytes(), freqs.tobytes(), float(scale))
+        h = self.kept.get(key)
+        if h is None:
+            a = self.one.num_ant
+            groups = self._groups()
+            parts = [np.multiply(frequency_response(self.one, freqs[sc], times[sym], self.t0,
+                                                    self.grouped, groups)[0], scale).reshape(a, -1)
+                     for sym, sc in plan.groups]
+            h = self._keep(key, np.concatenate(parts, axis=1) if parts
+                           else np.zeros((a, 0), dtype=np.complex128))
         return h
 
 
-_GROUPS: dict[bytes, list] = {}
-#: the groups of read-only masks by the array owning their memory and where they lie in it
+class REPlan:
+    """The occupied REs of a grid [T, K] as :func:`occupancy_groups` groups them, and as one
+    flat index into the T K plane, group after group, each group row-major (the order
+    ``x[group_index(rows, cols)].ravel()`` reads them in).
+
+    groups : list of (rows [R] int64, cols [C] int64); index : [n] int64, read-only
+    """
+
+    __slots__ = ("groups", "index")
+
+    def __init__(self, groups: list, num_cols: int):
+        self.groups = groups
+        idx = (np.concatenate([(rows[:, None] * num_cols + cols[None, :]).ravel()
+                               for rows, cols in groups]) if groups else np.zeros(0, np.int64))
+        idx.flags.writeable = False
+        self.index = idx
+
+
+_GROUPS: dict[bytes, REPlan | None] = {}
+#: the plans of read-only masks by the array owning their memory and where they lie in it
 _GROUPS_BY_MEMORY: dict[tuple, tuple] = {}
 
 
-def _groups_of(occ: np.ndarray) -> list | None:
-    """:func:`occupancy_groups` of ``occ``, kept per pattern (a run's grids share a few: the
-    PRS and tag REs of each BS, fixed by the config). A read-only mask (a transmitter's kept
-    one: the same memory at every call) is found by its memory, without reading its pattern."""
+def _plan_of(occ: np.ndarray) -> REPlan | None:
+    """The :class:`REPlan` of ``occ`` [T, K] (None: more than half of it occupied, a dense
+    grid: no groups), kept per pattern (a run's grids share a few: the PRS and tag REs of each
+    BS, fixed by the config). A read-only mask (a transmitter's kept one: the same memory at
+    every call) is found by its memory, without reading its pattern."""
+    def make():
+        if 2 * np.count_nonzero(occ) > occ.size:
+            return None
+        groups = occupancy_groups(occ)
+        return REPlan(groups, occ.shape[1]) if groups is not None else None
+
     owner = occ if occ.base is None else occ.base
+    by_value = lambda: kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), make)  # noqa: E731
     if occ.flags.writeable or not isinstance(owner, np.ndarray) or owner.flags.writeable:
-        return kept(_GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ))
-    return kept_by_id(_GROUPS_BY_MEMORY, (owner,), lambda: kept(
-        _GROUPS, occ.tobytes() + str(occ.shape).encode(), lambda: occupancy_groups(occ)),
-        key=(occ.__array_interface__["data"][0], occ.shape, occ.strides))
+        return by_value()
+    return kept_by_id(_GROUPS_BY_MEMORY, (owner,), by_value,
+                      key=(occ.__array_interface__["data"][0], occ.shape, occ.strides))
 
 
 def apply_time(links: Links, waveforms: np.ndarray, amplitudes: np.ndarray, sample_rate_hz: float,
@@ -565,6 +651,55 @@ def draw_noise(shape: tuple, variance: float, rng: np.random.Generator, major_ax
     n = np.moveaxis(n, 0, major_axis)
     n *= np.sqrt(variance / 2.0)
     return n
+
+
+def draw_grid_noise_slots(shape: tuple, read: np.ndarray | None, variance: float,
+                          rng: np.random.Generator, single: bool = False) -> tuple[np.ndarray, list]:
+    """The noise :func:`draw_grid_noise_on` draws (``read`` given) or :func:`draw_noise` with
+    ``major_axis`` 1 (``read`` None: every RE), the same values from the same generator state,
+    drawn one slot after the other, and the generator's state after each slot's draws: the
+    noise of the first S' slots of a grid is the first S' slots of this, and the generator
+    moved past them is the state after slot S' - 1 (the draws run slot-major, and NumPy's
+    normals carry nothing from one call to the next but the generator's state).
+
+    :param shape: (A, S, 14, K), the grid's
+    :param read: [S', 14, K] bool with S' >= S (its first S slots count), or None
+    :param single: single-precision normals (:func:`standard_normals`)
+    :returns: noise [A, S, 14, K] complex128 (a view of slot-major memory, as the two give
+        it); states: [S] the generator's state (``bit_generator.state``) after each slot
+    """
+    a, s = shape[0], shape[1]
+    rest = tuple(shape[2:])
+    per_slot = a * int(np.prod(rest))
+    if read is None:
+        idx = None
+        bounds = np.arange(s + 1) * per_slot
+    else:
+        idx = _read_index(read, s, a, rest)
+        bounds = np.searchsorted(idx, np.arange(s + 1) * per_slot)
+    total = int(bounds[-1])
+    scale = np.sqrt(variance / 2.0)
+    z = np.empty((total, 2), dtype=np.float32 if single else np.float64)
+    states = []
+    for i in range(s):
+        if bounds[i + 1] > bounds[i]:
+            if single:
+                rng.standard_normal(dtype=np.float32, out=z[bounds[i]:bounds[i + 1]])
+            else:
+                rng.standard_normal(out=z[bounds[i]:bounds[i + 1]])
+        states.append(rng.bit_generator.state)
+    # as standard_normals scales them: float32 draws times scale into float64, float64 in place
+    if single:
+        n = np.empty(total, dtype=np.complex128)
+        np.multiply(z, scale, out=n.view(np.float64).reshape(total, 2), dtype=np.float64)
+    else:
+        n = z.view(np.complex128)[:, 0]
+        n *= scale
+    if idx is None:
+        return np.moveaxis(n.reshape((s, a) + rest), 0, 1), states
+    out = np.zeros((s, a) + rest, dtype=np.complex128)
+    out.reshape(-1)[idx] = n
+    return np.moveaxis(out, 0, 1), states
 
 
 #: the flat indices of read masks, by the mask's memory (read-only masks only)

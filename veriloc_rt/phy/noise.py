@@ -28,7 +28,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .channel import add_noise, draw_grid_noise_on, draw_noise
+from .channel import add_noise, draw_grid_noise_on, draw_grid_noise_slots, draw_noise
 from .nr.ofdm import OFDM
 from .nr.prs import SYMBOLS_PER_SLOT
 from ..rng import KeptDraw
@@ -104,7 +104,11 @@ class KeptWhiteNoise(WhiteNoise):
     kept draw, for a signal of the same shape and variance, gets the same noise without drawing
     it again, and the generator moved past the draws as if drawn. Chains handed the same
     generator state at one point (a run's standard-PRS and encrypted-PRS chains: common random
-    numbers, one thermal noise per point) then draw it once.
+    numbers, one thermal noise per point) then draw it once. A grid's noise is drawn slot by
+    slot (:func:`~veriloc_rt.phy.channel.draw_grid_noise_slots`, the same values), so a grid of
+    the first slots alone (a chain decoding tags on another's timing) gets the first slots of a
+    kept draw of more slots with the same REs read in them, and the generator in the state
+    after those slots' draws: what drawing them would give.
 
     :param size: draws kept (the oldest is dropped)
     """
@@ -112,7 +116,11 @@ class KeptWhiteNoise(WhiteNoise):
     follows_call_rng = True
 
     def __init__(self, size: int = 4):
+        self.size = int(size)
         self._kept = KeptDraw(size)
+        #: kept grid draws, the last first: (state on entry, (A, 14, K), variance, single,
+        #: read mask [S, 14, K] or None, noise [A, S, 14, K], state after each slot)
+        self._grids: list[tuple] = []
 
     def __call__(self, x: np.ndarray, variance: float, rng: np.random.Generator) -> np.ndarray:
         return self.add_on_read(x, variance, rng, None)
@@ -123,20 +131,41 @@ class KeptWhiteNoise(WhiteNoise):
             return WhiteNoise.__call__(self, x, variance, rng)   # a copy, or the type error
         if _overrides_call(self, KeptWhiteNoise):
             return self(x, variance, rng)
-        if x.ndim != 4:
-            read = None
         single = bool(single)
+        if x.ndim == 4:
+            return self.grid_noise(x.shape, variance, rng, read, single) + x
 
         def draw():
-            n = (draw_noise(x.shape, variance, rng, 1 if x.ndim == 4 else 0, single)
-                 if read is None else draw_grid_noise_on(x.shape, read, variance, rng, single))
+            n = draw_noise(x.shape, variance, rng, 0, single)
             n.flags.writeable = False
             return n
 
-        # the REs drawn and the precision are part of the key (a mask's bytes: it compares by
-        # value)
-        mask = None if read is None else np.asarray(read, dtype=bool)[:x.shape[1]].tobytes()
-        return self._kept((x.shape, variance, mask, single), rng, draw) + x
+        return self._kept((x.shape, variance, None, single), rng, draw) + x
+
+    def grid_noise(self, shape: tuple, variance: float, rng: np.random.Generator,
+                   read: np.ndarray | None, single: bool = False) -> np.ndarray:
+        """The noise of a grid of ``shape`` (A, S, 14, K) on the REs ``read`` (None: every RE),
+        read-only: kept, or the first S slots of a kept draw of more slots, with ``rng`` moved
+        past the draws; else drawn (:func:`~veriloc_rt.phy.channel.draw_grid_noise_slots`)."""
+        a, s, rest = shape[0], shape[1], tuple(shape[2:])
+        if s == 0:
+            return np.zeros(shape, dtype=np.complex128)
+        mask = None if read is None else np.asarray(read, dtype=bool)[:s]
+        state = rng.bit_generator.state
+        for e in self._grids:
+            start, dims, var, one, emask, noise, after = e
+            if (noise.shape[1] >= s and dims == (a,) + rest and var == variance and one == single
+                    and (emask is None) == (mask is None)
+                    and (mask is None or np.array_equal(emask[:s], mask)) and start == state):
+                rng.bit_generator.state = after[s - 1]
+                return noise if noise.shape[1] == s else noise[:, :s]
+        noise, after = draw_grid_noise_slots(shape, read, variance, rng, single)
+        noise.flags.writeable = False
+        if mask is not None:
+            mask = mask.copy()
+            mask.flags.writeable = False
+        self._grids = [(state, (a,) + rest, variance, single, mask, noise, after)] + self._grids[:self.size - 1]
+        return noise
 
 
 class GridNoise(NoiseSource):

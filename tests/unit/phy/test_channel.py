@@ -333,3 +333,95 @@ def test_a_links_response_is_computed_once_and_kept_exactly(frame):
     assert len(calls) == n_first
     np.testing.assert_array_equal(again, fresh)
     np.testing.assert_array_equal(first, apply_frequency(links, grids, amps, ofdm, slots, 0.5e-6))
+
+
+def test_re_plan_indexes_each_groups_res_in_their_order():
+    """REPlan: the flat index reads a grid's occupied REs group after group, each group's block
+    row-major (second method: the blocks x[group_index(rows, cols)] concatenated; exact), every
+    occupied RE once; a link applied through it (apply_frequency) gives the scatter-add
+    reference's bits, on a tagged PRS frame."""
+    from veriloc_rt.phy.channel import REPlan, group_index, occupancy_groups
+    from veriloc_rt.phy.security.keys import simulated_keys
+
+    nr = NRConfig(slots_per_frame=2)
+    ofdm = OFDM(nr)
+    slots = range(2)
+    tx = PRSTransmitter(nr, SecurityConfig(tag_scheme="hmac"), (1, 2, 3),
+                        simulated_keys((1, 2, 3), np.random.default_rng(0)))
+    grids = tx(0, slots)
+    x = grids[1].reshape(-1, ofdm.num_subcarriers)
+    groups = occupancy_groups(x != 0)
+    plan = REPlan(groups, x.shape[1])
+    want = np.concatenate([x[group_index(rows, cols)].ravel() for rows, cols in groups])
+    np.testing.assert_array_equal(x.ravel()[plan.index], want)
+    assert np.array_equal(np.sort(plan.index), np.flatnonzero(x != 0))     # each RE once
+    assert not plan.index.flags.writeable
+    rng = np.random.default_rng(12)
+    links = Links(1e-6 + rng.uniform(0, 2e-6, (3, 3)), rng.standard_normal((3, 2, 3)) + 1j * rng.standard_normal((3, 2, 3)),
+                  rng.uniform(-150, 150, (3, 3)), np.ones((3, 3), dtype=bool))
+    amps = np.array([1.0, 0.5, 2.0])
+    got = apply_frequency(links, grids, amps, ofdm, slots, 0.9e-6)
+    want = _scatter_add_reference(links, grids, amps, ofdm, slots, 0.9e-6)
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+def test_kept_responses_go_least_recently_used_first_and_within_their_bytes(frame, monkeypatch):
+    """The links' kept responses (phy.channel _LinkResponses): a link applied again after more
+    than 16 others (a 9-TRP point: serving links, uplinks, the meaconer's links) is not
+    evaluated again while fewer than RESPONSES_MAX links came between; a link used again is
+    the last to go; over RESPONSES_MAX_BYTES the least recently used links go first and are
+    evaluated afresh, bit for bit the same (second method: a fresh computation)."""
+    import veriloc_rt.phy.channel as ch
+
+    nr, ofdm, grids, _ = frame
+    slots = range(grids.shape[1])
+    amps = np.ones(1)
+    monkeypatch.setattr(ch, "KEPT_RESPONSES", type(ch.KEPT_RESPONSES)())   # an empty store
+    calls = []
+    real = ch.frequency_response
+    monkeypatch.setattr(ch, "frequency_response", lambda *a: calls.append(1) or real(*a))
+
+    def link(seed):
+        return _links([[1e-6 + 1e-8 * seed, 2e-6]], [[30.0, -40.0]], seed=seed)
+
+    first = apply_frequency(link(0), grids[:1], amps, ofdm, slots, 0.5e-6)
+    per_link = len(calls)
+    for seed in range(1, 30):                          # 29 other links: more than 16
+        apply_frequency(link(seed), grids[:1], amps, ofdm, slots, 0.5e-6)
+    calls.clear()
+    again = apply_frequency(link(0), grids[:1], amps, ofdm, slots, 0.5e-6)
+    assert calls == []
+    np.testing.assert_array_equal(again, first)
+    # the bytes of four links' responses at most: the least recently used go, link 0 (used
+    # last but three) stays, link 1 goes
+    size = ch.KEPT_RESPONSES.nbytes[next(iter(ch.KEPT_RESPONSES.links))]
+    monkeypatch.setattr(ch, "RESPONSES_MAX_BYTES", 4 * size)
+    for seed in (30, 31, 32):
+        apply_frequency(link(seed), grids[:1], amps, ofdm, slots, 0.5e-6)
+    assert len(ch.KEPT_RESPONSES.links) == 4
+    assert ch.KEPT_RESPONSES.total == sum(ch.KEPT_RESPONSES.nbytes.values()) <= 4 * size
+    calls.clear()
+    apply_frequency(link(0), grids[:1], amps, ofdm, slots, 0.5e-6)
+    assert calls == []
+    fresh = apply_frequency(link(1), grids[:1], amps, ofdm, slots, 0.5e-6)
+    assert len(calls) == per_link
+    monkeypatch.setattr(ch, "KEPT_RESPONSES", type(ch.KEPT_RESPONSES)())
+    np.testing.assert_array_equal(fresh, apply_frequency(link(1), grids[:1], amps, ofdm, slots, 0.5e-6))
+
+
+def test_a_links_delay_groups_given_give_the_same_response():
+    """frequency_response with the links' delay groups given (found once per link by the kept
+    responses) is the one that finds them itself, bit for bit (second method), on links with
+    shared delays (TR 38.901 rays of a cluster)."""
+    from veriloc_rt.phy.channel import delay_groups
+
+    rng = np.random.default_rng(3)
+    taus = np.repeat(1e-6 + rng.uniform(0, 2e-6, 6), 4)        # 6 clusters of 4 rays
+    links = Links(taus[None], rng.standard_normal((1, 2, 24)) + 1j * rng.standard_normal((1, 2, 24)),
+                  rng.uniform(-100, 100, (1, 24)), np.ones((1, 24), dtype=bool))
+    f = np.arange(-36, 36) * 15e3
+    t = np.arange(14) * 7e-5
+    groups = [delay_groups(links.delays[0], links.valid[0])]
+    got = frequency_response(links, f, t, 0.9e-6, True, groups)
+    want = frequency_response(links, f, t, 0.9e-6, True)
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))

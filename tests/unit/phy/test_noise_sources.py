@@ -109,8 +109,9 @@ def test_kept_white_noise_draws_once_per_generator_state(monkeypatch):
     import veriloc_rt.phy.noise as noise_module
 
     draws = []
-    real = noise_module.draw_noise
-    monkeypatch.setattr(noise_module, "draw_noise", lambda *a, **k: draws.append(1) or real(*a, **k))
+    real = noise_module.draw_grid_noise_slots
+    monkeypatch.setattr(noise_module, "draw_grid_noise_slots",
+                        lambda *a, **k: draws.append(1) or real(*a, **k))
     shape = (2, 3, 14, 12)
     rng = np.random.default_rng(5)
     x1 = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
@@ -126,9 +127,80 @@ def test_kept_white_noise_draws_once_per_generator_state(monkeypatch):
     np.testing.assert_array_equal(y2, WhiteNoise()(x2, 0.5, np.random.default_rng(9)))   # the same noise
     assert gens[2].bit_generator.state == gens[0].bit_generator.state != before
     kept(x2, 0.25, np.random.default_rng(9))                        # another variance
-    kept(x1[:, :1], 0.5, np.random.default_rng(9))                  # another shape
+    kept(x1[..., :6], 0.5, np.random.default_rng(9))                # another shape
     assert len(draws) == 3
     # two kept (size 2): the first draw was dropped, so it is drawn again, the same values
     again = kept(x1, 0.5, np.random.default_rng(9))
     assert len(draws) == 4
     np.testing.assert_array_equal(again, ref)
+
+
+@pytest.mark.parametrize("single", [False, True])
+@pytest.mark.parametrize("masked", [False, True])
+def test_kept_white_noise_gives_the_first_slots_of_a_kept_draw(monkeypatch, single, masked):
+    """A grid of the first S' slots from a generator in a kept draw's state gets that draw's
+    first S' slots and the generator in the state drawing them leaves it in, without drawing:
+    bit for bit what a fresh KeptWhiteNoise draws for the S' slots from the same state (second
+    method), and the generator's next draws the same; with the REs read (the shortcut
+    ``noise``) and single-precision normals (``noise32``) too. A mask that differs in those
+    slots, or more slots than kept, draws anew."""
+    import veriloc_rt.phy.noise as noise_module
+
+    draws = []
+    real = noise_module.draw_grid_noise_slots
+    monkeypatch.setattr(noise_module, "draw_grid_noise_slots",
+                        lambda *a, **k: draws.append(1) or real(*a, **k))
+    shape = (3, 4, 14, 24)
+    rng = np.random.default_rng(1)
+    x = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+    read = None
+    if masked:
+        read = rng.uniform(size=shape[1:]) < 0.6
+        read[0, 3] = False                      # slot 0 with a symbol unread, slot 2 empty
+        read[2] = False
+        read.flags.writeable = False
+    kept = KeptWhiteNoise()
+    full = kept.add_on_read(x, 0.7, np.random.default_rng(4), read, single)
+    for m in (1, 2, 3, 4):
+        g_kept, g_fresh = np.random.default_rng(4), np.random.default_rng(4)
+        got = kept.add_on_read(x[:, :m], 0.7, g_kept, read, single)
+        want = KeptWhiteNoise().add_on_read(x[:, :m], 0.7, g_fresh, read, single)
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+        np.testing.assert_array_equal(got, full[:, :m])
+        assert g_kept.bit_generator.state == g_fresh.bit_generator.state
+        np.testing.assert_array_equal(g_kept.standard_normal(5), g_fresh.standard_normal(5))
+    assert len(draws) == 1 + 4                  # the fresh ones only
+    draws.clear()
+    if masked:
+        other = read.copy()
+        other[1, 0, 0] = not other[1, 0, 0]
+        kept.add_on_read(x[:, :2], 0.7, np.random.default_rng(4), other, single)
+        assert len(draws) == 1
+    bigger = np.concatenate([x, x[:, :1]], axis=1)
+    kept.add_on_read(bigger, 0.7, np.random.default_rng(4), None if read is None
+                     else np.concatenate([read, read[:1]]), single)
+    assert len(draws) == 1 + masked
+
+
+@pytest.mark.parametrize("single", [False, True])
+def test_grid_noise_drawn_slot_by_slot_is_the_one_draws(single):
+    """draw_grid_noise_slots: the values of draw_grid_noise_on (REs read) and of draw_noise
+    with major_axis 1 (every RE), bit for bit (second method: those, from the same state), and
+    after slot s the generator state drawing the first s + 1 slots alone leaves."""
+    from veriloc_rt.phy.channel import draw_grid_noise_on, draw_grid_noise_slots, draw_noise
+
+    shape = (2, 3, 14, 36)
+    read = np.random.default_rng(2).uniform(size=(4, 14, 36)) < 0.5
+    for r in (read, None):
+        n, states = draw_grid_noise_slots(shape, r, 1.3, np.random.default_rng(8), single)
+        want = (draw_grid_noise_on(shape, r, 1.3, np.random.default_rng(8), single) if r is not None
+                else draw_noise(shape, 1.3, np.random.default_rng(8), 1, single))
+        np.testing.assert_array_equal(n.view(np.float64), want.view(np.float64))
+        for s in range(shape[1]):
+            g = np.random.default_rng(8)
+            sub = (shape[0], s + 1) + shape[2:]
+            if r is not None:
+                draw_grid_noise_on(sub, r, 1.3, g, single)
+            else:
+                draw_noise(sub, 1.3, g, 1, single)
+            assert states[s] == g.bit_generator.state

@@ -15,6 +15,7 @@ gets it back with the generator moved past the noise draws, as if drawn again.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,7 @@ import numpy as np
 from ...config.channel import ChannelConfig
 from ...propagation.cir import CIR
 from ..channel import (Links, apply_frequency, apply_time, dbm_to_watt, equal_arrival_powers,
-                       re_amplitude, timing_reference)
+                       kept_by_id, re_amplitude, timing_reference)
 from ..nr.ofdm import OFDM
 from ..noise import NoiseSource
 from ..shortcuts import reference
@@ -30,6 +31,30 @@ from ...rng import KeptDraw
 from .frames import FrameSignals
 
 __all__ = ["Adversary", "DownlinkChannel", "DownlinkLinks", "KeptDraw", "Received", "SignalKey"]
+
+
+#: per thread: the links of the last points' CIRs (:func:`point_links`)
+_POINT_LINKS = threading.local()
+#: (CIR, point) pairs whose links are kept: a point's serving links and the adversary's link
+#: to the UE, asked for by every chain of every scenario at that point
+POINT_LINKS_MAX = 4
+
+
+def point_links(cir: CIR, point: int) -> Links:
+    """``Links.from_cir(cir, point)``, kept per thread under the CIR's identity (a CIR's arrays
+    do not change) and the point, read-only: the chains of a point (standard, DS-tagged,
+    encrypted PRS) and its scenarios take the same links from the same CIRs."""
+    store = getattr(_POINT_LINKS, "store", None)
+    if store is None:
+        store = _POINT_LINKS.store = {}
+
+    def make():
+        links = Links.from_cir(cir, point)
+        for a in (links.delays, links.gains, links.doppler, links.valid):
+            a.flags.writeable = False
+        return links
+
+    return kept_by_id(store, (cir,), make, key=(int(point),), max_entries=POINT_LINKS_MAX)
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,14 +183,14 @@ class DownlinkChannel:
 
     def links(self, bs_ue: CIR, point: int, adversary: Adversary | None = None) -> DownlinkLinks:
         """The links of point ``point``, the powers after power control and t0."""
-        links = Links.from_cir(bs_ue, point)
+        links = point_links(bs_ue, point)
         powers = equal_arrival_powers(links.power_gain(), float(dbm_to_watt(self.channel.bs_max_power_dbm)),
                                       self.channel.power_control)
         amps = re_amplitude(powers * self.bs_power_factor, self.ofdm)
         t0 = timing_reference(links, self.channel.timing_guard_s)
         if adversary is None:
             return DownlinkLinks(links, powers, amps, t0)
-        return DownlinkLinks(links, powers, amps, t0, Links.from_cir(adversary.cir, point),
+        return DownlinkLinks(links, powers, amps, t0, point_links(adversary.cir, point),
                              adversary.signal)
 
     def read_mask(self, frame: FrameSignals) -> np.ndarray | None:

@@ -97,6 +97,28 @@ def test_downlink_power_control_and_timing_reference_in_closed_form():
     assert links.timing_reference_s == pytest.approx(dist.min() / C - ch.timing_guard_s, rel=REL)
 
 
+def test_a_points_links_are_taken_from_its_cir_once_per_thread():
+    """point_links: Links.from_cir's arrays bit for bit (second method: from_cir itself),
+    read-only, the same object for the same CIR and point (every chain and scenario of a point),
+    another for another point or another CIR of equal values; at most POINT_LINKS_MAX pairs kept."""
+    from veriloc_rt.phy.chain import downlink as dm
+    from veriloc_rt.phy.channel import Links
+
+    cir = one_path_cir(UE)
+    first = dm.point_links(cir, 0)
+    want = Links.from_cir(cir, 0)
+    for got, ref in zip((first.delays, first.gains, first.doppler, first.valid),
+                        (want.delays, want.gains, want.doppler, want.valid)):
+        np.testing.assert_array_equal(got, ref)
+        assert not got.flags.writeable
+    assert dm.point_links(cir, 0) is first
+    twin = one_path_cir(UE)
+    assert dm.point_links(twin, 0) is not first
+    for k in range(dm.POINT_LINKS_MAX + 1):
+        dm.point_links(one_path_cir(UE + k), 0)
+    assert dm.point_links(cir, 0) is not first          # pushed out: taken again
+
+
 def test_frames_carry_the_checked_slots_tags_and_a_relay_gets_every_tag():
     """With tag_slots (0,) a frame's grids are the whole frame's on every RE but slot 1's tag
     REs, which stay empty (3 BSs' tags: half the REs of each PRS symbol), and the occupancy

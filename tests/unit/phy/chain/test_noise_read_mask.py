@@ -61,14 +61,15 @@ def test_reference_switch(monkeypatch):
 def _results(cfg_dict, tmp_path, fill):
     """Every scenario's chain results at a benign and an attack point, the REs left without
     noise holding ``fill`` instead of 0."""
-    real = noise_mod.draw_grid_noise_on
+    real = noise_mod.draw_grid_noise_slots   # the run's noise source's (KeptWhiteNoise) draws
 
     def poisoned(shape, read, variance, rng, single=False):
-        n = real(shape, read, variance, rng, single)
+        n, states = real(shape, read, variance, rng, single)
+        n = np.array(n)
         n[:, ~np.asarray(read, bool)[:shape[1]]] = fill * np.sqrt(variance)
-        return n
+        return n, states
 
-    noise_mod.draw_grid_noise_on = poisoned
+    noise_mod.draw_grid_noise_slots = poisoned
     try:
         cfg = config_from_dict(cfg_dict)
         geo = build_geometry(cfg, tmp_path / "scene")
@@ -83,7 +84,7 @@ def _results(cfg_dict, tmp_path, fill):
                 runner.clear_cache()
         return out
     finally:
-        noise_mod.draw_grid_noise_on = real
+        noise_mod.draw_grid_noise_slots = real
 
 
 @pytest.mark.heavy
@@ -93,8 +94,8 @@ def test_no_stage_reads_an_re_left_without_noise(cfg, tmp_path, monkeypatch):
     results with 0 there bit for bit (any read of such an RE would move a statistic)."""
     monkeypatch.delenv(ENV, raising=False)
     calls = []
-    real = noise_mod.draw_grid_noise_on
-    monkeypatch.setattr(noise_mod, "draw_grid_noise_on",
+    real = noise_mod.draw_grid_noise_slots
+    monkeypatch.setattr(noise_mod, "draw_grid_noise_slots",
                         lambda *a: calls.append(np.count_nonzero(a[1]) / a[1].size) or real(*a))
     base = _results(cfg, tmp_path / "zero", 0.0)
     assert calls and max(calls) < 1.0   # the shortcut ran, and left some REs out
