@@ -13,6 +13,12 @@ what the kernels cost a point against the chain as it runs and against a wall-ti
 elementwise NumPy) would still have.
 
     .venv/bin/python benchmarks/bench_floor.py [CONFIG] [--points 20] [--target-s 60] [--cores 2]
+        [--set FIELD=JSON ...]
+
+``--set nr.num_prb=24`` (and 52, 104) separates what grows with the band from what does not: the
+chain's CPU a point against the PRBs is close to a line, whose intercept is the per-point work
+that batching points could at most remove (interpreter, NumPy dispatch, and the arithmetic of
+fixed size: the fix, the tags' words, the signatures).
 
 Not counted (so the floor is a lower bound): BLAS products, signatures, AES, NumPy's own
 FFTs, and the elementwise products the model is made of (the channel applied per RE, the
@@ -170,17 +176,30 @@ def main() -> int:
     ap.add_argument("--points", type=int, default=20, help="points of each range (benign, attack window)")
     ap.add_argument("--target-s", type=float, default=60.0, help="the run's wall-time target [s]")
     ap.add_argument("--cores", type=int, default=2, help="cores the run's workers share")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=JSON",
+                    help="a config change (dotted path), e.g. nr.num_prb=24")
     args = ap.parse_args()
     if args.points < 1 or args.cores < 1 or args.target_s <= 0:
         print("error: --points, --cores, --target-s: must be positive", file=sys.stderr)
         return 2
+    import json
+    changes = {}
+    for item in args.set:
+        field, eq, value = item.partition("=")
+        if not eq or not field:
+            print(f"error: --set: expected FIELD=JSON, got {item!r}", file=sys.stderr)
+            return 2
+        try:
+            changes[field] = json.loads(value)
+        except json.JSONDecodeError:   # a bare string
+            changes[field] = value
     import harness   # this folder's
     from veriloc_rt.errors import InputError
 
     install_hooks()
     with tempfile.TemporaryDirectory() as tmp:
         try:
-            r = harness.scenario_runner(args.config, None, Path(tmp))
+            r = harness.scenario_runner(args.config, None, Path(tmp), changes=changes)
         except InputError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2

@@ -115,16 +115,20 @@ def power_deviation(prop, ref, points) -> tuple[dict, np.ndarray, np.ndarray]:
 
 
 def scenario_runner(config: str | Path | None, points: int | None, work: Path,
-                    package: str = "veriloc_rt"):
+                    package: str = "veriloc_rt", changes: dict | None = None):
     """A ScenarioRunner of package ``package`` (importable under that name) on ``config``
-    (None: the built-in default) with ``points`` trajectory points (None: the config's); the
-    scene is built under ``work``, the propagation computed in this process (a ray-traced
-    config reads its default propagation cache)."""
+    (None: the built-in default) with ``points`` trajectory points (None: the config's) and
+    the config ``changes`` ({dotted path: value}); the scene is built under ``work``, the
+    propagation computed in this process (a ray-traced config reads its default propagation
+    cache)."""
     cfgm = importlib.import_module(package + ".config")
     eng = importlib.import_module(package + ".sim.engine")
     run = importlib.import_module(package + ".sim.runner")
     keys = importlib.import_module(package + ".sim.run_folder")
-    cfg = cfgm.with_overrides(cfgm.load_config(config), points=points)
+    cfg = cfgm.load_config(config)
+    if changes:
+        cfg = cfg.updated(changes)
+    cfg = cfgm.with_overrides(cfg, points=points)
     geo = eng.build_geometry(cfg, work / ("scene_" + package))
     prop = eng.compute_propagation(cfg, geo, None, "default", workers=1)
     return run.ScenarioRunner(cfg, geo, prop, keys.run_keys(cfg, len(geo.bs_pos)))
