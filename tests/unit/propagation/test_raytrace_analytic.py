@@ -159,6 +159,31 @@ def test_batched_receivers_match_one_receiver_per_call(street):
         _same_paths(batched, i, single, 0, f"receiver {i}")
 
 
+
+def test_padded_sources_leave_every_path_unchanged(street):
+    """A call's sources padded with dummies (3 -> 4; sampled rays and the exhaustive edge
+    candidates) returns every wanted link's paths the same to the bit as the call without
+    them. Exact: the dummies' rays have their own hash tables, budgets and buffer shares in
+    Sionna's candidate generator, and their pairs are dropped (SionnaTracer's docstring)."""
+    from veriloc_rt.propagation.sionna_rt import RawPaths
+
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False, rays_per_source=2000)
+    ues = STREET_UES[:3]
+    for pairs in (np.array([[i, j] for i in range(3) for j in range(2)]),
+                  np.array([[0, 0], [1, 1], [2, 0]])):
+        try:
+            street.pad_sources = False
+            plain = street.trace(ues, STREET_BSS, fid, pairs=pairs)
+            assert street.last_num_sources == 3
+            street.pad_sources = True
+            padded = street.trace(ues, STREET_BSS, fid, pairs=pairs)
+            assert street.last_num_sources == 4
+        finally:
+            street.pad_sources = True
+        assert plain.valid.sum() >= 2 * len(pairs)
+        for f in RawPaths.FIELDS:
+            assert np.array_equal(getattr(plain, f), getattr(padded, f)), f
+
 class DirectTracer:
     """Minimal tracer for trace_links: one PathSolver call per link (also used by
     test_polarization)."""
