@@ -188,7 +188,11 @@ class SionnaTracer:
     hash-table region, its own path budget and its own share of the candidate buffer, so the
     dummies' rays cannot displace a real source's candidates; and the dummies' pairs are not
     wanted, so their candidates are dropped before the image method (:class:`.WantedLinks`)
-    or never enumerated (:class:`.StreetCandidateGenerator`).
+    or never enumerated (:class:`.StreetCandidateGenerator`). The sampled rays' candidate
+    generator is Sionna's deterministic one with the target count handed to Dr.Jit as data
+    (:mod:`.sb_opaque`). With both, a call's kernels depend on its padded source count and on
+    whether it has one target or several, not on a drive's own counts (docs/performance.md,
+    "Cold start").
 
     :param scene_xml: Mitsuba XML scene
     :param frequency: carrier frequency [Hz]
@@ -217,10 +221,12 @@ class SionnaTracer:
         self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
         # deferred: the module needs the Mitsuba variant import_sionna() selected
+        from .sb_opaque import OpaqueSBDeterministicCandidateGenerator
         from .street_solver import WantedLinks
         # Sionna's PathSolver has no public hook for the candidate generator: its attribute
-        # is wrapped (pinned Sionna RT version, tests/unit/propagation)
-        self._wanted = WantedLinks(self.solver._candidate_generator)
+        # is wrapped (pinned Sionna RT version, tests/unit/propagation), around Sionna's
+        # deterministic generator with the target count opaque to Dr.Jit (sb_opaque)
+        self._wanted = WantedLinks(OpaqueSBDeterministicCandidateGenerator())
         self.solver._candidate_generator = self._wanted
         self._edge_solvers: dict = {}   # (plane distance, target reflections) -> (solver, gen.)
         # deferred, as above: the image method and field calculator of Sionna's PathSolver
@@ -237,6 +243,17 @@ class SionnaTracer:
         bbox = self.scene.mi_scene.bbox()
         self._dummy = dummy_source_position(np.array(bbox.min, np.float64).ravel(),
                                             np.array(bbox.max, np.float64).ravel())
+
+    @property
+    def candidate_generator(self):
+        """Sionna RT candidate generator of the sampled rays (before :class:`.WantedLinks`
+        drops the unwanted pairs): Sionna's deterministic one with the target count opaque
+        (:mod:`.sb_opaque`); settable (tests compare it with Sionna's own)."""
+        return self._wanted.generator
+
+    @candidate_generator.setter
+    def candidate_generator(self, generator) -> None:
+        self._wanted.generator = generator
 
     def _edge_solver(self, fid: RayTracingConfig):
         """(PathSolver, its candidate generator): the exhaustive edge-diffraction candidates."""
