@@ -23,6 +23,47 @@ from .street_paths import aligned, duplicates
 
 log = logging.getLogger(__name__)
 
+#: Source counts up to this are padded to a power of two, larger ones to a multiple of
+#: SOURCE_STEP_LARGE (:func:`padded_source_count`)
+SOURCE_POW2_MAX = 128
+SOURCE_STEP_LARGE = 64
+
+#: Dummy sources stand this many scene-diagonals below the scene's lowest point: the scene
+#: then fills a cone of ~1/(2 x this) rad around their zenith, so almost none of their rays
+#: meets it (their cost) and what they trace is dropped anyway (:meth:`SionnaTracer.trace`)
+DUMMY_SOURCE_DISTANCE = 100.0
+
+
+def padded_source_count(n: int) -> int:
+    """The source count a PathSolver call of ``n`` real sources is padded to: the next power
+    of two up to SOURCE_POW2_MAX, then the next multiple of SOURCE_STEP_LARGE. At most
+    2n - 1 (the dummies' hash tables and buffers: memory) and one of a few values, so that
+    Dr.Jit compiles the kernels whose code holds the source count once per value, not once
+    per drive."""
+    if n < 1:
+        raise ValueError(f"`n` must be >= 1, not {n}")
+    if n <= SOURCE_POW2_MAX:
+        return 1 << (n - 1).bit_length()
+    return -(-n // SOURCE_STEP_LARGE) * SOURCE_STEP_LARGE
+
+
+def pad_sources(src: np.ndarray, dummy: np.ndarray) -> np.ndarray:
+    """``src`` [n, 3] m followed by copies of ``dummy`` [3] m up to
+    :func:`padded_source_count` rows: the real sources keep their indices."""
+    src = np.atleast_2d(np.asarray(src, np.float64))
+    extra = padded_source_count(len(src)) - len(src)
+    return np.concatenate([src, np.broadcast_to(np.asarray(dummy, np.float64), (extra, 3))])
+
+
+def dummy_source_position(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Where dummy sources stand for a scene whose bounding box is ``lo``..``hi`` [3] m:
+    below its centre, DUMMY_SOURCE_DISTANCE diagonals (at least 1 m each) below its lowest
+    point. -> [3] float64, m"""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    diag = max(float(np.linalg.norm(hi - lo)), 1.0)
+    c = (lo + hi) / 2
+    return np.array([c[0], c[1], lo[2] - DUMMY_SOURCE_DISTANCE * diag])
+
 
 @dataclass(frozen=True, eq=False)
 class RawPaths:
@@ -140,6 +181,19 @@ class RawPaths:
 class SionnaTracer:
     """Loads a scene once and traces (tx, [rx...]) groups with fixed fidelity.
 
+    A call with ``pairs`` traces its sources padded with dummy sources
+    (:func:`padded_source_count`; :attr:`pad_sources`), which leaves every real pair's paths
+    the same to the bit: the dummies come after the real sources (whose indices, rays and
+    sampler lanes are unchanged); in Sionna's candidate generator each source has its own
+    hash-table region, its own path budget and its own share of the candidate buffer, so the
+    dummies' rays cannot displace a real source's candidates; and the dummies' pairs are not
+    wanted, so their candidates are dropped before the image method (:class:`.WantedLinks`)
+    or never enumerated (:class:`.StreetCandidateGenerator`). The sampled rays' candidate
+    generator is Sionna's deterministic one with the target count handed to Dr.Jit as data
+    (:mod:`.sb_opaque`). With both, a call's kernels depend on its padded source count and on
+    whether it has one target or several, not on a drive's own counts (docs/performance.md,
+    "Cold start").
+
     :param scene_xml: Mitsuba XML scene
     :param frequency: carrier frequency [Hz]
     :param seed: PathSolver seed (deterministic candidate generation)
@@ -167,10 +221,12 @@ class SionnaTracer:
         self._materials = None   # the MaterialsConfig last applied to the scene
         self.solver = rt.PathSolver(deterministic=True)
         # deferred: the module needs the Mitsuba variant import_sionna() selected
+        from .sb_opaque import OpaqueSBDeterministicCandidateGenerator
         from .street_solver import WantedLinks
         # Sionna's PathSolver has no public hook for the candidate generator: its attribute
-        # is wrapped (pinned Sionna RT version, tests/unit/propagation)
-        self._wanted = WantedLinks(self.solver._candidate_generator)
+        # is wrapped (pinned Sionna RT version, tests/unit/propagation), around Sionna's
+        # deterministic generator with the target count opaque to Dr.Jit (sb_opaque)
+        self._wanted = WantedLinks(OpaqueSBDeterministicCandidateGenerator())
         self.solver._candidate_generator = self._wanted
         self._edge_solvers: dict = {}   # (plane distance, target reflections) -> (solver, gen.)
         # deferred, as above: the image method and field calculator of Sionna's PathSolver
@@ -180,6 +236,24 @@ class SionnaTracer:
         self.seed = int(seed) % (2**31 - 1)
         self.max_paths_per_src = 10**6
         self.last_num_edge_candidates = 0
+        #: pad the sources of a call with ``pairs`` (False: the call's own source count)
+        self.pad_sources = True
+        #: sources of the last PathSolver call, dummies included
+        self.last_num_sources = 0
+        bbox = self.scene.mi_scene.bbox()
+        self._dummy = dummy_source_position(np.array(bbox.min, np.float64).ravel(),
+                                            np.array(bbox.max, np.float64).ravel())
+
+    @property
+    def candidate_generator(self):
+        """Sionna RT candidate generator of the sampled rays (before :class:`.WantedLinks`
+        drops the unwanted pairs): Sionna's deterministic one with the target count opaque
+        (:mod:`.sb_opaque`); settable (tests compare it with Sionna's own)."""
+        return self._wanted.generator
+
+    @candidate_generator.setter
+    def candidate_generator(self, generator) -> None:
+        self._wanted.generator = generator
 
     def _edge_solver(self, fid: RayTracingConfig):
         """(PathSolver, its candidate generator): the exhaustive edge-diffraction candidates."""
@@ -202,7 +276,7 @@ class SionnaTracer:
 
         :param tx_pos: [num_tx, 3] float64, m; rx_pos: [num_rx, 3] float64, m
         :param pairs: [num_links, 2] int (tx, rx) indices to return; default all tx x rx pairs
-            in row-major (tx, rx) order
+            in row-major (tx, rx) order (then the sources are not padded)
         :returns: one row per returned pair
         """
         scene = self.scene
@@ -211,6 +285,10 @@ class SionnaTracer:
             self._materials = fid.materials
         tx_pos = np.atleast_2d(tx_pos)
         rx_pos = np.atleast_2d(rx_pos)
+        num_tx = len(tx_pos)
+        if pairs is not None and self.pad_sources:
+            tx_pos = pad_sources(tx_pos, self._dummy)
+        self.last_num_sources = len(tx_pos)
         enumerated = fid.edge_candidates != "sampled" and fid.diffraction and fid.max_depth >= 1
         self._wanted.links = pairs
         buf = solve_buffer(self._wanted, self._stages, scene, tx_pos, rx_pos,
@@ -221,7 +299,7 @@ class SionnaTracer:
                            diffuse_reflection=fid.diffuse_reflection,
                            refraction=fid.refraction, diffraction=sampled_diffraction(fid),
                            seed=self.seed)
-        raw = _extract(buf, len(tx_pos), len(rx_pos), pairs, self.ports, fid.max_depth)
+        raw = _extract(buf, num_tx, len(rx_pos), pairs, self.ports, fid.max_depth)
         if enumerated:
             _, generator = self._edge_solver(fid)
             generator.links = pairs
@@ -231,7 +309,7 @@ class SionnaTracer:
                                los=False, specular_reflection=True, diffuse_reflection=False,
                                refraction=False, diffraction=True, seed=self.seed)
             self.last_num_edge_candidates = generator.last_num_candidates
-            raw = raw.merge(_extract(buf, len(tx_pos), len(rx_pos), pairs, self.ports,
+            raw = raw.merge(_extract(buf, num_tx, len(rx_pos), pairs, self.ports,
                                      fid.max_depth))
         return raw
 

@@ -159,6 +159,83 @@ def test_batched_receivers_match_one_receiver_per_call(street):
         _same_paths(batched, i, single, 0, f"receiver {i}")
 
 
+
+def test_padded_sources_leave_every_path_unchanged(street):
+    """A call's sources padded with dummies (3 -> 4; sampled rays and the exhaustive edge
+    candidates) returns every wanted link's paths the same to the bit as the call without
+    them. Exact: the dummies' rays have their own hash tables, budgets and buffer shares in
+    Sionna's candidate generator, and their pairs are dropped (SionnaTracer's docstring)."""
+    from veriloc_rt.propagation.sionna_rt import RawPaths
+
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False, rays_per_source=2000)
+    ues = STREET_UES[:3]
+    for pairs in (np.array([[i, j] for i in range(3) for j in range(2)]),
+                  np.array([[0, 0], [1, 1], [2, 0]])):
+        try:
+            street.pad_sources = False
+            plain = street.trace(ues, STREET_BSS, fid, pairs=pairs)
+            assert street.last_num_sources == 3
+            street.pad_sources = True
+            padded = street.trace(ues, STREET_BSS, fid, pairs=pairs)
+            assert street.last_num_sources == 4
+        finally:
+            street.pad_sources = True
+        assert plain.valid.sum() >= 2 * len(pairs)
+        for f in RawPaths.FIELDS:
+            assert np.array_equal(getattr(plain, f), getattr(padded, f)), f
+
+
+#: three BSs: calls with 2 and 3 targets (a one-element array is broadcast by Dr.Jit, so one
+#: target compiles its own variants once)
+STREET_BSS3 = np.concatenate([STREET_BSS, [[40.0, 80.0, 20.0]]])
+
+
+def test_opaque_generator_matches_sionnas(street):
+    """The tracer's candidate generator (sb_opaque: Sionna's deterministic generator with the
+    target count opaque to Dr.Jit) returns the paths of Sionna's own, to the bit, for
+    several source and target counts."""
+    from sionna.rt.path_solvers.sb_deterministic import SBDeterministicCandidateGenerator
+
+    from veriloc_rt.propagation.sionna_rt import RawPaths
+
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False, rays_per_source=2000)
+    ours = street.candidate_generator
+    for ns, nt in ((3, 2), (4, 3), (2, 1)):
+        pairs = np.array([[i, j] for i in range(ns) for j in range(nt)])
+        try:
+            street.candidate_generator = SBDeterministicCandidateGenerator()
+            sionna = street.trace(STREET_UES[:ns], STREET_BSS3[:nt], fid, pairs=pairs)
+        finally:
+            street.candidate_generator = ours
+        raw = street.trace(STREET_UES[:ns], STREET_BSS3[:nt], fid, pairs=pairs)
+        assert raw.valid.sum() >= 2 * len(pairs)
+        for f in RawPaths.FIELDS:
+            assert np.array_equal(getattr(sionna, f), getattr(raw, f)), (ns, nt, f)
+
+
+def test_other_counts_positions_and_seed_launch_the_same_kernels(street):
+    """A call of 3 sources (padded to 4) and 2 targets, then one of 4 other sources, 3 targets
+    and another seed: the second launches only kernels the first launched (their hashes, in
+    Dr.Jit's kernel history; independent of the kernel cache on disk). With Sionna's own
+    generator the target count is compiled into the ray loop and its index arithmetic."""
+    import drjit as dr
+
+    fid = RayTracingConfig(max_depth=2, diffraction=True, refraction=False, rays_per_source=2000)
+    seed = street.seed
+    try:
+        with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+            street.trace(STREET_UES[:3], STREET_BSS3[:2], fid,
+                         pairs=np.array([[0, 0], [1, 1], [2, 0]]))
+            first = {k["hash"] for k in dr.kernel_history([dr.KernelType.JIT])}
+            street.seed = seed + 1
+            raw = street.trace(STREET_UES + np.array([0.37, -0.21, 0.0]), STREET_BSS3, fid,
+                               pairs=np.array([[i, j] for i in range(4) for j in range(3)]))
+            second = [k["hash"] for k in dr.kernel_history([dr.KernelType.JIT])]
+    finally:
+        street.seed = seed
+    assert raw.valid.any() and second
+    assert [h for h in second if h not in first] == []
+
 class DirectTracer:
     """Minimal tracer for trace_links: one PathSolver call per link (also used by
     test_polarization)."""

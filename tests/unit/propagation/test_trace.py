@@ -6,7 +6,9 @@ import pytest
 from veriloc_rt.config import config_from_dict
 from veriloc_rt.constants import SPEED_OF_LIGHT
 from veriloc_rt.propagation.cir import ADVERSARY_TX, NO_TX, doppler_shift
-from veriloc_rt.propagation.raytrace import plan_calls, trace
+from veriloc_rt.propagation.raytrace import MAX_SOURCES_PER_CALL, plan_calls, trace
+from veriloc_rt.propagation.sionna_rt import (dummy_source_position, pad_sources,
+                                             padded_source_count)
 from veriloc_rt.world.geometry import build_geometry
 
 from .rt_scenes import ground, write_test_scene
@@ -35,6 +37,42 @@ def test_plan_calls_bounds_work_and_targets():
                        max_pairs=30)
     assert [len(c) for c in calls] == [30, 30, 30, 30]
 
+
+
+def test_call_source_counts_are_bucketed():
+    """Dr.Jit compiles a PathSolver call's source count into its kernels, so a call is padded
+    to one of a few counts (docs/performance.md, "Cold start"): another drive's calls, with
+    other counts, then reuse the kernels. The counts listed here are the ladder itself
+    (powers of two to 128, then multiples of 64); at most 2n - 1 sources (memory)."""
+    n = np.arange(1, MAX_SOURCES_PER_CALL + 1)
+    padded = np.array([padded_source_count(int(k)) for k in n])
+    assert sorted(set(padded.tolist())) == [1, 2, 4, 8, 16, 32, 64, 128, 192]
+    assert np.all(padded >= n) and np.all(padded <= 2 * n - 1)
+    assert padded_source_count(200) == 256 and padded_source_count(257) == 320
+    with pytest.raises(ValueError, match="`n`"):
+        padded_source_count(0)
+    # the calls of two drives of 3 serving links a point, with their own source counts,
+    # are padded to counts of the ladder: 11 and 14 sources are traced as 16
+    src = np.repeat(np.arange(30), 3)
+    dst = (np.repeat(np.arange(30), 3) // 7 + np.tile(np.arange(3), 30))
+    counts = [len(set(src[c].tolist())) for c in plan_calls(src, dst, 1, 10**9, max_pairs=45)]
+    assert len(set(counts)) > 1
+    assert {padded_source_count(k) for k in counts} <= {1, 2, 4, 8, 16, 32, 64, 128, 192}
+
+
+def test_pad_sources_appends_dummies_far_below_the_scene():
+    """The real sources keep their rows (their indices in the call's pairs); the dummies stand
+    DUMMY_SOURCE_DISTANCE scene diagonals below the scene."""
+    rng = np.random.default_rng(0)
+    src = rng.uniform(-100, 100, (5, 3))
+    lo, hi = np.array([-300.0, -300.0, 0.0]), np.array([300.0, 300.0, 40.0])
+    dummy = dummy_source_position(lo, hi)
+    diag = np.sqrt(600.0 ** 2 + 600.0 ** 2 + 40.0 ** 2)
+    assert np.allclose(dummy, [0.0, 0.0, -100.0 * diag])
+    out = pad_sources(src, dummy)
+    assert out.shape == (8, 3)
+    assert np.array_equal(out[:5], src) and np.array_equal(out[5:], np.tile(dummy, (3, 1)))
+    assert pad_sources(src[:4], dummy).shape == (4, 3)
 
 @pytest.mark.raytrace
 def test_trace_tiny_canyon_and_cache(tmp_path):
