@@ -5,7 +5,7 @@ includes every attack scenario's adversary grid (``AdversarySignal.__call__``: t
 replicas, the relay's received and amplified grid, the jammer's noise). This times those calls
 alone, inside the same ``compute_chains`` calls: each version's ``AdversarySignal.__call__`` is
 wrapped to add its thread CPU time, the versions alternating point by point over two passes (the
-order swapped each pass), as ab_chains does.
+order swapped each pass) after the same untimed warm-up, as ab_chains does.
 
     .venv/bin/python benchmarks/ab_adversary.py OLD [CONFIG] [--new REV] [--points 20]
         [--start S]
@@ -51,6 +51,7 @@ def main() -> int:
             print(f"error: --start/--points: points {args.start}..{args.start + args.points - 1} "
                   f"outside the trajectory's 0..{last - 1}", file=sys.stderr)
             return 2
+        ab_chains.warm_up(runners)
         adv = dict.fromkeys(names, 0.0)
         chain = dict.fromkeys(names, 0.0)
         for n in names:

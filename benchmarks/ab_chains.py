@@ -65,6 +65,19 @@ def same(a: dict, b: dict) -> bool:
     return True
 
 
+def warm_up(runners: dict) -> None:
+    """Each version's one-time costs (imports such as the tag decoder's package, tables built at
+    a chain's first call) paid untimed, on a benign and an attack-window point: without it the
+    version timed first paid them, and a copy compared with itself read 0.88."""
+    window = next(iter(runners.values())).window
+    warm = {int(np.flatnonzero(~window)[0]) if (~window).any() else 0,
+            int(np.flatnonzero(window)[0]) if window.any() else 0}
+    for r in runners.values():
+        for i in sorted(warm):
+            r.compute_chains("none", i)
+            r.clear_cache()
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("old", help="git revision of the code before")
@@ -89,16 +102,7 @@ def main() -> int:
             print(f"error: --start/--points: points {args.start}..{args.start + args.points - 1} "
                   f"outside the trajectory's 0..{last - 1}", file=sys.stderr)
             return 2
-        # untimed: each version's one-time costs (imports such as the tag decoder's package,
-        # tables built at a chain's first call) on a benign and an attack-window point; without
-        # it the version timed first paid them, and a copy compared with itself read 0.88
-        window = runners[names[0]].window
-        warm = {int(np.flatnonzero(~window)[0]) if (~window).any() else 0,
-                int(np.flatnonzero(window)[0]) if window.any() else 0}
-        for n in names:
-            for i in sorted(warm):
-                runners[n].compute_chains("none", i)
-                runners[n].clear_cache()
+        warm_up(runners)
         cpu = dict.fromkeys(names, 0.0)
         differ = set()
         for p in range(args.passes):
