@@ -483,11 +483,13 @@ def trace_links(tracer: LinkTracer, tx: np.ndarray, rx: np.ndarray, reciprocal: 
         ``theta_t/phi_t`` at the transmitter, ``a`` indexed (receiver port, transmitter port)
         (reversed paths: the transposed polarimetric matrix, Lorentz reciprocity)
     """
-    if not reciprocal:
-        return tracer.trace(tx, rx, progress, workers, reduce)
     if reduce is None:
-        return _physical(tracer.trace(rx, tx, progress, workers))
-    return tracer.trace(rx, tx, progress, workers, lambda part, rows: reduce(_physical(part), rows))
+        return tracer.trace(tx, rx, progress, workers) if not reciprocal \
+            else _physical(tracer.trace(rx, tx, progress, workers))
+    if not reciprocal:
+        return tracer.trace(tx, rx, progress, workers, reduce=reduce)
+    return tracer.trace(rx, tx, progress, workers,
+                        reduce=lambda part, rows: reduce(_physical(part), rows))
 
 
 def _physical(rev: RawPaths) -> RawPaths:
