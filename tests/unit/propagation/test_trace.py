@@ -243,3 +243,55 @@ def test_no_path_anywhere_gives_a_usable_cir(tmp_path):
     assert cir.delays.shape == (3, 3, 1) and np.all(cir.delays == -1.0)
     b = benign_chain(cfg, geo, cir, run_keys(cfg, len(geo.bs_pos)), np.arange(3))
     assert not np.isfinite(b.pos).any() and not b.decisions[:, 0].any()
+
+
+def _random_rows(rng, n: int, depth: int) -> list:
+    """``n`` single-link RawPaths as calls return them: float32 angles, 2x2 ports, each its own
+    width (1-40 path slots), some slots invalid (tau -1, zeros), some paths coupling only H to H
+    (a V-V projection drops them and keeps their angles), interactions up to ``depth``."""
+    from veriloc_rt.propagation.sionna_rt import RawPaths
+
+    rows = []
+    for _ in range(n):
+        w = int(rng.integers(1, 41))
+        valid = rng.random((1, w)) < 0.7
+        tau = np.where(valid, rng.random((1, w)) * 1e-6, -1.0)
+        a = (rng.normal(size=(1, w, 2, 2)) + 1j * rng.normal(size=(1, w, 2, 2))) * valid[..., None, None]
+        hh = rng.random(w) < 0.3             # paths a V-V link does not couple: dropped, angles kept
+        a[0, hh, 0, :] = 0
+        a[0, hh, :, 0] = 0
+        ang = {f: np.where(valid, rng.random((1, w)), 0.0).astype(np.float32)
+               for f in ("theta_r", "phi_r", "theta_t", "phi_t")}
+        inter = (rng.integers(0, 4, (1, w, depth)) * valid[..., None]).astype(np.uint8)
+        rows.append(RawPaths(tau=tau, a=a.astype(np.complex64), interactions=inter, valid=valid, **ang))
+    return rows
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 64, 1000])
+def test_reduced_rows_equal_the_reduction_of_all_rows_bit_for_bit(chunk):
+    """The links' paths reduced chunk by chunk (what a run keeps: each set's ports, its strongest
+    paths) are the reduction of all of them at once, field for field and bit for bit: a chunk
+    is laid out as the whole (width, depth, types), the reduction works row by row. Reference:
+    the whole laid out by ``RawPaths.concat`` and taken by index, as before the chunks."""
+    from veriloc_rt.propagation.raytrace import reduced_rows
+    from veriloc_rt.propagation.sionna_rt import RawPaths
+
+    rng = np.random.default_rng(5)
+    rows = _random_rows(rng, 60, depth=4)
+    index = rng.integers(0, 60, 150)                  # links sharing a traced pair, any order
+    ports = (("V", "V"), ("H", "+45"), ("-45", "V"))
+
+    def keep(part, idx):                              # a different reduction per third of the links
+        g = np.minimum(idx // 50, 2)
+        out = [part.project(*ports[k]).keep_strongest(8) for k in range(3)]
+        return RawPaths(**{f: np.concatenate([getattr(out[g[i]], f)[i:i + 1] for i in range(len(idx))])
+                           if len(idx) else getattr(out[0], f) for f in RawPaths.FIELDS})
+
+    whole = RawPaths.concat(rows)
+    whole = RawPaths(**{f: getattr(whole, f)[index] for f in RawPaths.FIELDS})
+    ref = keep(whole, np.arange(len(index)))
+    got = reduced_rows(rows, index, keep, chunk=chunk)
+    for f in RawPaths.FIELDS:
+        x, y = getattr(ref, f), getattr(got, f)
+        assert x.dtype == y.dtype and x.shape == y.shape, f
+        assert np.array_equal(x, y), f
