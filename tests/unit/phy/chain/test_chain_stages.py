@@ -70,6 +70,29 @@ def test_frame_source_replicas_are_the_transmitted_prs_and_the_last_frame_is_kep
     assert not np.array_equal(src((0, 1, 2), 6).grids, sig.grids)   # the tags carry the frame
 
 
+def test_serving_sets_beyond_the_kept_ones_are_made_again_the_same():
+    """A FrameSource keeps the transmitters of its SETUPS_KEPT last serving sets (a drive past
+    many sites meets dozens); a set pushed out and asked for again gets a new transmitter whose
+    frame is the first one's to the bit (grids, replicas, occupancy): the bound changes no value."""
+    from veriloc_rt.phy.chain.frames import SETUPS_KEPT
+
+    nr = NRConfig(slots_per_frame=1)
+    sets = [(a, a + 1, a + 2) for a in range(SETUPS_KEPT + 2)]
+    src = FrameSource(nr, SecurityConfig(tag_scheme="hmac"),
+                      simulated_keys(range(SETUPS_KEPT + 4), np.random.default_rng(0)), time_domain=False)
+    first = src(sets[0], 7)
+    tx = src.setup(sets[0]).transmitter
+    for ids in sets[1:]:
+        src(ids, 7)
+    again = src(sets[0], 7)
+    assert src.setup(sets[0]).transmitter is not tx          # pushed out, made again
+    np.testing.assert_array_equal(again.grids, first.grids)
+    np.testing.assert_array_equal(again.occupied, first.occupied)
+    for r0, r1 in zip(first.replicas, again.replicas):
+        np.testing.assert_array_equal(r0, r1)
+    assert src.setup(sets[-1]).transmitter is src.setup(sets[-1]).transmitter   # a kept one
+
+
 def test_an_empty_serving_slot_transmits_under_a_dummy_identity():
     assert ServingSet.of((4, NO_TX, 9)).transmitted_ids == (4, DUMMY_ID + 1, 9)
     src = FrameSource(NRConfig(slots_per_frame=1), SecurityConfig(tag_scheme="hmac"),
