@@ -63,7 +63,9 @@ def test_ldpc_decoder_built_on_first_decode():
     assert "_decoder" not in vars(code)            # nothing of the ldpc package yet
     bits = np.random.default_rng(0).integers(0, 2, 256).astype(np.uint8)
     cw = code.encode(bits)
-    llr = np.where(cw == 0, 4.0, -4.0)             # noiseless, confident LLRs
+    llr = np.where(cw == 0, 4.0, -4.0)             # confident LLRs, but for one sent bit
+    wrong = int(np.flatnonzero(cw[:256] == 0)[0])  # flipped, weakly: not a codeword, so belief
+    llr[wrong] = -0.5                              # propagation runs (a codeword skips it)
     decoded, ok = code.decode(llr)
     assert "_decoder" in vars(code)
     assert bool(ok) and np.array_equal(decoded, bits)
