@@ -182,18 +182,12 @@ def main() -> int:
     if args.points < 1 or args.cores < 1 or args.target_s <= 0:
         print("error: --points, --cores, --target-s: must be positive", file=sys.stderr)
         return 2
-    import json
-    changes = {}
-    for item in args.set:
-        field, eq, value = item.partition("=")
-        if not eq or not field:
-            print(f"error: --set: expected FIELD=JSON, got {item!r}", file=sys.stderr)
-            return 2
-        try:
-            changes[field] = json.loads(value)
-        except json.JSONDecodeError:   # a bare string
-            changes[field] = value
     import harness   # this folder's
+    try:
+        changes = harness.parse_assignments(args.set, "--set", as_json=True)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     from veriloc_rt.errors import InputError
 
     install_hooks()

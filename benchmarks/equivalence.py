@@ -439,17 +439,9 @@ def report(config: str, seeds: list[int], points: int, versions: dict[str, Versi
     return "\n".join(lines) + "\n", bool(rejected)
 
 
-def parse_assignments(items, what: str, as_json: bool) -> dict:
-    out = {}
-    for item in items or ():
-        if "=" not in item:
-            raise ValueError(f"{what}: {item!r} is not NAME=VALUE")
-        k, v = item.split("=", 1)
-        out[k] = json.loads(v) if as_json else v
-    return out
-
-
 def main(argv=None) -> int:
+    from harness import parse_assignments   # this folder's (the tests load this module alone)
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("config", nargs="?", default=str(ROOT / "configs" / "paper-uma.json"))
     ap.add_argument("--seeds", type=int, default=8, help="seeds 1..N (each a run per version)")

@@ -134,6 +134,18 @@ def scenario_runner(config: str | Path | None, points: int | None, work: Path,
     return run.ScenarioRunner(cfg, geo, prop, keys.run_keys(cfg, len(geo.bs_pos)))
 
 
+def parse_assignments(items, what: str, as_json: bool) -> dict:
+    """``NAME=VALUE`` command-line items as {NAME: VALUE} (VALUE read as JSON when ``as_json``);
+    raises ValueError naming ``what`` for an item without ``=`` or, as JSON, an unreadable value."""
+    out = {}
+    for item in items or ():
+        if "=" not in item:
+            raise ValueError(f"{what}: {item!r} is not NAME=VALUE")
+        k, v = item.split("=", 1)
+        out[k] = json.loads(v) if as_json else v
+    return out
+
+
 def run_cli(cfg: dict, out: Path, *extra: str, env: dict | None = None) -> tuple[float, dict]:
     """``veriloc-rt run --out OUT/run EXTRA -- OUT/config.json`` in its own process (``-I``:
     nothing imported from the current folder), its stdout and stderr kept in OUT; returns

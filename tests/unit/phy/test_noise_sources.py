@@ -25,6 +25,18 @@ def grid_shape(ofdm: OFDM, slots: int, ant: int = 5) -> tuple:
     return (ant, slots, 14, ofdm.num_subcarriers)
 
 
+def counted_slot_draws(monkeypatch) -> list:
+    """A list that grows by one at each call of the noise module's slot-by-slot draw (the
+    calls go through, unchanged)."""
+    import veriloc_rt.phy.noise as noise_module
+
+    draws = []
+    real = noise_module.draw_grid_noise_slots
+    monkeypatch.setattr(noise_module, "draw_grid_noise_slots",
+                        lambda *a, **k: draws.append(1) or real(*a, **k))
+    return draws
+
+
 @pytest.mark.parametrize("snr_db", [0.0, 20.0])
 def test_white_noise_variance_matches_the_configured_snr(snr_db):
     """The UE's variance per RE is k T0 F f_s (F = 9 dB, the UE's noise figure); a signal of
@@ -106,12 +118,7 @@ def test_kept_white_noise_draws_once_per_generator_state(monkeypatch):
     call from a generator in the same state, for another signal of the same shape, adds the
     same noise without drawing and leaves the generator where the draws leave it; another
     variance or shape draws anew, and at most ``size`` draws are kept."""
-    import veriloc_rt.phy.noise as noise_module
-
-    draws = []
-    real = noise_module.draw_grid_noise_slots
-    monkeypatch.setattr(noise_module, "draw_grid_noise_slots",
-                        lambda *a, **k: draws.append(1) or real(*a, **k))
+    draws = counted_slot_draws(monkeypatch)
     shape = (2, 3, 14, 12)
     rng = np.random.default_rng(5)
     x1 = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
@@ -144,12 +151,7 @@ def test_kept_white_noise_gives_the_first_slots_of_a_kept_draw(monkeypatch, sing
     method), and the generator's next draws the same; with the REs read (the shortcut
     ``noise``) and single-precision normals (``noise32``) too. A mask that differs in those
     slots, or more slots than kept, draws anew."""
-    import veriloc_rt.phy.noise as noise_module
-
-    draws = []
-    real = noise_module.draw_grid_noise_slots
-    monkeypatch.setattr(noise_module, "draw_grid_noise_slots",
-                        lambda *a, **k: draws.append(1) or real(*a, **k))
+    draws = counted_slot_draws(monkeypatch)
     shape = (3, 4, 14, 24)
     rng = np.random.default_rng(1)
     x = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
