@@ -18,7 +18,7 @@ from scipy.special import chdtri
 ROOT = Path(__file__).resolve().parents[2]
 #: loaded by the chain's estimators, decoder and tag verifier only, and by a ray-traced
 #: scene's meshes (trimesh: the PLY files are written without it)
-LAZY = ("scipy.stats", "scipy.signal", "scipy.optimize", "ldpc", "scipy.ndimage", "trimesh")
+LAZY = ("scipy.stats", "scipy.signal", "scipy.optimize", "ldpc", "scipy.ndimage", "trimesh", "numba")
 
 
 def test_the_run_modules_load_no_chain_only_package():
