@@ -43,9 +43,9 @@ from scipy.linalg.blas import zherk as _zherk
 from scipy.special import chdtri   # chi-square inverse survival function (a ufunc: 40x
                                    # faster than scipy.stats.chi2.isf, same values)
 
-from ..channel import as_slice, kept, occupancy_groups
+from ..channel import as_slice, kept, kept_by_id, occupancy_groups
 from ..shortcuts import reference
-from .toa_kernels import antenna_power
+from .toa_kernels import antenna_power, cast_blocks, interleave_groups
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
@@ -135,15 +135,20 @@ class CrossSpectra:
         return tuple(kept(_SLICES, bins.tobytes(), lambda: as_slice(bins)) for _, bins, _ in self.groups)
 
     @cached_property
-    def _cover(self) -> tuple[bool, bool]:
-        """(some bin in more than one group, every bin in a group) for :attr:`groups`."""
+    def _cover(self) -> tuple:
+        """(some bin in more than one group, every bin in a group, :attr:`bin_map`) for
+        :attr:`groups`."""
         bins = [b for _, b, _ in self.groups]
 
         def make():
             cover = np.zeros(self.freqs.size, dtype=np.int64)
             for b in bins:
                 cover[b] += 1
-            return bool(np.any(cover > 1)), bool(np.all(cover > 0))
+            stacked = None
+            if len({b.size for b in bins}) == 1:
+                stacked = np.stack(bins).astype(np.int64)
+                stacked.flags.writeable = False
+            return bool(np.any(cover > 1)), bool(np.all(cover > 0)), stacked
 
         return kept(_OVERLAPS, (self.freqs.size,) + tuple(b.tobytes() for b in bins), make)
 
@@ -157,6 +162,12 @@ class CrossSpectra:
     def bins_covered(self) -> bool:
         """Every bin belongs to some group of :attr:`groups` (else some bins stay zero)."""
         return self._cover[1]
+
+    @property
+    def stacked_bins(self) -> np.ndarray | None:
+        """[G, J] int64, the bins of :attr:`groups` stacked, when the groups are of one size J
+        (a comb's); else None."""
+        return self._cover[2]
 
     def combine(self, weights: np.ndarray) -> np.ndarray:
         """sum_b w_b S_abk: [B] -> [A, K] complex128."""
@@ -402,6 +413,23 @@ def _doppler_rotations(nus: np.ndarray, tc: np.ndarray) -> np.ndarray:
         return rot
 
     return kept(_ROTATIONS, (nus.tobytes(), tc.tobytes()), make)
+
+
+#: :func:`_group_rotations` by (rotations, groups' blocks)
+_GROUP_ROTATIONS: dict = {}
+
+
+def _group_rotations(rot: np.ndarray, cs: CrossSpectra) -> tuple:
+    """The columns of the Doppler rotations ``rot`` [V, B] of each group of ``cs.groups``,
+    [V, B_g] complex64 each (C-contiguous, kept, read-only)."""
+    def make():
+        out = tuple(np.ascontiguousarray(rot[:, blocks]) for blocks, _, _ in cs.groups)
+        for a in out:
+            a.flags.writeable = False
+        return out
+
+    return kept_by_id(_GROUP_ROTATIONS, (rot,), make,
+                      tuple(blocks.tobytes() for blocks, _, _ in cs.groups))
 
 
 class ZoomPlan:
@@ -666,20 +694,32 @@ class ToAEstimator:
         """
         rot = _doppler_rotations(nus, tc)                                             # [V, B]
         a_ = cs.num_ant
+        # groups of one size (a comb's): the products stacked, then written into ``out`` row
+        # by row (scattering group by group made one strided pass over ``out`` per group)
+        bins_g = cs.stacked_bins
         if out is None:
             out = np.zeros((nus.size, a_, cs.freqs.size), dtype=np.complex64)
-        elif cs.bins_overlap or not cs.bins_covered:
+        elif bins_g is None and (cs.bins_overlap or not cs.bins_covered):
             out[...] = 0
-        for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
+        stack = (None if bins_g is None else
+                 np.empty((len(cs.groups), nus.size, a_, bins_g.shape[1]), dtype=np.complex64))
+        for g, ((blocks, bins, part), ix, rot_g) in enumerate(zip(cs.groups, cs.bin_index,
+                                                                  _group_rotations(rot, cs))):
             q = np.empty((blocks.size, a_, bins.size), dtype=np.complex64)   # [B_g, A, K_g]
-            q[...] = part.transpose(1, 0, 2)                                  # cast and reorder in one pass
+            cast_blocks(np.ascontiguousarray(part), q)                       # cast and reorder in one pass
             if keep is not None:
                 keep.append(q)
-            prod = (rot[:, blocks] @ q.reshape(blocks.size, -1)).reshape(-1, a_, bins.size)
+            if stack is not None:
+                np.matmul(rot_g, q.reshape(blocks.size, -1), out=stack[g].reshape(nus.size, -1))
+                continue
+            prod = (rot_g @ q.reshape(blocks.size, -1)).reshape(-1, a_, bins.size)
             if cs.bins_overlap:
                 out[:, :, ix] += prod
             else:
                 out[:, :, ix] = prod
+        if stack is not None:
+            interleave_groups(stack, bins_g, out, cs.bins_overlap or not cs.bins_covered,
+                              cs.bins_overlap)
         return out
 
     def doppler_cells(self, tc: np.ndarray) -> float:

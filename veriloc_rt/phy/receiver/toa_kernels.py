@@ -13,7 +13,7 @@ import numpy as np
 
 from ..jit import kernel
 
-__all__ = ["antenna_power"]
+__all__ = ["antenna_power", "cast_blocks", "interleave_groups"]
 
 
 @kernel
@@ -41,3 +41,45 @@ def antenna_power(q, start, length, out, out_start):
                 re = src[i].real
                 im = src[i].imag
                 row[i] += np.float64(re * re + im * im)
+
+
+@kernel
+def cast_blocks(part, q):
+    """q[b, a, k] = complex64(part[a, b, k]): the spectra of a group of blocks reordered
+    block-major and rounded to single precision (NumPy's cast: each part rounded to nearest).
+
+    :param part: [A, B, K] complex128, C-contiguous; q: [B, A, K] complex64, C-contiguous
+    """
+    a_n, b_n, k_n = part.shape
+    for b in range(b_n):
+        for a in range(a_n):
+            src = part[a, b]
+            dst = q[b, a]
+            for k in range(k_n):
+                dst[k] = np.complex64(src[k])
+
+
+@kernel
+def interleave_groups(stack, bins, out, zero, add):
+    """out[v, a, bins[g, j]] = stack[g, v, a, j] (``add``: +=, the groups in order), row by row
+    of ``out`` (each row stays in cache while every group writes into it); ``zero``: each row
+    zeroed first.
+
+    :param stack: [G, V, A, J] complex64, C-contiguous; bins: [G, J] int64; out: [V, A, K]
+        complex64
+    """
+    g_n, v_n, a_n, j_n = stack.shape
+    for v in range(v_n):
+        for a in range(a_n):
+            dst = out[v, a]
+            if zero:
+                dst[:] = 0
+            for g in range(g_n):
+                src = stack[g, v, a]
+                at = bins[g]
+                if add:
+                    for j in range(j_n):
+                        dst[at[j]] += src[j]
+                else:
+                    for j in range(j_n):
+                        dst[at[j]] = src[j]

@@ -61,3 +61,75 @@ def test_antenna_power_of_the_estimator_keeps_the_shape():
     got = summed_power(p, ((60, 4), (0, 30)))
     assert got.shape == (27, 34)
     assert np.array_equal(got, np.concatenate([want[:, 60:], want[:, :30]], axis=-1))
+
+
+def _doppler_spectra_numpy(cs, nus, tc):
+    """The Doppler scan's product as written in NumPy before the kernels (the reference):
+    each group cast and reordered by NumPy, multiplied, scattered into its bins (added where
+    groups overlap)."""
+    rot = np.exp(-2j * np.pi * nus[:, None] * tc[None, :]).astype(np.complex64)
+    out = np.zeros((nus.size, cs.num_ant, cs.freqs.size), dtype=np.complex64)
+    keep = []
+    for (blocks, bins, part), ix in zip(cs.groups, cs.bin_index):
+        q = np.empty((blocks.size, cs.num_ant, bins.size), dtype=np.complex64)
+        q[...] = part.transpose(1, 0, 2)
+        keep.append(q)
+        prod = (rot[:, blocks] @ q.reshape(blocks.size, -1)).reshape(-1, cs.num_ant, bins.size)
+        if cs.bins_overlap:
+            out[:, :, ix] += prod
+        else:
+            out[:, :, ix] = prod
+    return out, keep
+
+
+def _spectra(rng, groups, k_n, a_n=5):
+    """CrossSpectra on parts: ``groups`` a list of (blocks, bins)."""
+    from veriloc_rt.phy.receiver.toa import CrossSpectra
+
+    b_n = 1 + max(int(b.max()) for b, _ in groups)
+    ref = np.zeros((b_n, k_n))
+    parts = []
+    for blocks, bins in groups:
+        ref[np.ix_(blocks, bins)] = 1.0
+        parts.append((blocks, bins, _field(rng, (a_n, blocks.size, bins.size), np.complex128)))
+    return CrossSpectra(None, (np.arange(k_n) - k_n // 2) * 15e3, 15e3,
+                        np.arange(b_n) * 71.4e-6, ref, k_n * 15e3, tuple(parts))
+
+
+@pytest.mark.parametrize("layout", ["comb6", "comb6_uncovered", "overlapping", "unequal", "one_group"])
+def test_doppler_spectra_is_the_numpy_product_bit_for_bit(layout):
+    """The Doppler scan's spectra and the single-precision copies it keeps (cast_blocks,
+    interleave_groups) against the NumPy code they replace, bit for bit, for the paper
+    config's comb-6 PRS (6 groups of 20 blocks x 104 of 624 bins), a comb missing one group's
+    bins (zeros there), groups whose bins overlap (added), groups of unequal sizes (the NumPy
+    scatter) and one dense group; written into a fresh array and into the head of the scan's
+    zero-padded buffer."""
+    from veriloc_rt.phy.receiver.toa import ToAEstimator
+
+    rng = np.random.default_rng(11)
+    blocks = [np.arange(g, 120, 6) for g in range(6)]
+    if layout == "comb6":
+        groups = [(blocks[g], np.arange((g * 5) % 6, 624, 6)) for g in range(6)]
+    elif layout == "comb6_uncovered":
+        groups = [(blocks[g], np.arange(g, 624, 6)) for g in range(5)]
+    elif layout == "overlapping":
+        groups = [(blocks[0], np.arange(0, 300)), (blocks[1], np.arange(200, 500)),
+                  (blocks[2], np.arange(324, 624))]
+    elif layout == "unequal":
+        groups = [(blocks[0], np.arange(0, 300)), (blocks[1], np.arange(300, 624))]
+    else:
+        groups = [(np.arange(40), np.arange(156))]
+    k_n = 156 if layout == "one_group" else 624
+    cs = _spectra(rng, groups, k_n)
+    nus = np.arange(-400.0, 401.0, 25.0)
+    tc = cs.block_times - cs.block_times.mean()
+    want, want_keep = _doppler_spectra_numpy(cs, nus, tc)
+    keep = []
+    got = ToAEstimator.doppler_spectra(cs, nus, tc, None, keep)
+    assert np.array_equal(got, want)
+    assert len(keep) == len(want_keep)
+    assert all(np.array_equal(a, b) for a, b in zip(keep, want_keep))
+    pad = np.full((nus.size, 5, 1024), np.nan + 0j, dtype=np.complex64)
+    pad[..., k_n:] = 0
+    ToAEstimator.doppler_spectra(cs, nus, tc, pad[..., :k_n])
+    assert np.array_equal(pad[..., :k_n], want) and not pad[..., k_n:].any()
