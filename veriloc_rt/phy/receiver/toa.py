@@ -45,7 +45,7 @@ from scipy.special import chdtri   # chi-square inverse survival function (a ufu
 
 from ..channel import as_slice, kept, kept_by_id, occupancy_groups
 from ..shortcuts import reference
-from .toa_kernels import antenna_power, cast_blocks, interleave_groups
+from .toa_kernels import antenna_power, cast_blocks, interleave_groups, multiply_into
 from ...config.channel import ReceiverConfig
 
 __all__ = ["CrossSpectra", "ToAEstimate", "ToAEstimator"]
@@ -474,7 +474,12 @@ class ZoomPlan:
         """sum_a |c_a(l)|^2 of g [..., A, K] (times ``win`` [K] per bin): [..., M] float64."""
         pre = self.pre if win is None else self.pre * win
         buf = _padded("zoom", g.shape[:-1] + (self.size,), self.dtype, self.p_n)
-        if self.contiguous:
+        if self.contiguous and np.result_type(g, pre) == g.dtype:
+            # NumPy's product (pre cast to g's type as NumPy does), without its dispatch
+            # and broadcast over the strided head: multiply_into gives the same bits
+            multiply_into(np.ascontiguousarray(g).reshape(-1, g.shape[-1]), pre.astype(g.dtype),
+                          buf.reshape(-1, self.size))
+        elif self.contiguous:
             np.multiply(g, pre, out=buf[..., :self.pos.size])
         else:
             buf[..., :self.p_n] = 0

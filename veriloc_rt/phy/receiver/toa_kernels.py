@@ -2,18 +2,101 @@
 of sequences of NumPy passes (:mod:`~veriloc_rt.phy.jit`, compiled at their first call).
 
 Each kernel takes C-contiguous arrays of fixed dimensions (a caller reshapes), so that a chain
-compiles few signatures. The kernels that give the NumPy code's bits (same operations, same
-order, same precision) replace it outright; the others belong to the shortcut ``jittoa``
-(:mod:`~veriloc_rt.phy.shortcuts`) and the NumPy code stays their reference path.
+compiles few signatures. Each gives the NumPy code's bits (same operations, same order, same
+precision; tests/unit/phy/receiver/test_toa_kernels.py compares them with ``np.array_equal``)
+and replaces it outright.
+
+Complex products: NumPy's SIMD loops (AVX2 and AVX-512 with FMA, the x86-64 machines the chain
+runs on) compute (a_r + j a_i)(b_r + j b_i) as ``fma(a_r, b_r, -(a_i b_i))`` and
+``fma(a_r, b_i, a_i b_r)``, a multiply and a fused multiply-add per part; a plain loop's
+``a * b`` rounds the two products separately. :func:`multiply_into` calls :func:`fma` (LLVM's
+``llvm.fma``, one rounding) in NumPy's order and so gives its bits; on a machine whose NumPy
+multiplies without FMA the test above fails.
 """
 
 from __future__ import annotations
+
+import threading
+from fractions import Fraction
 
 import numpy as np
 
 from ..jit import kernel
 
-__all__ = ["antenna_power", "cast_blocks", "interleave_groups"]
+__all__ = ["antenna_power", "cast_blocks", "fma", "interleave_groups", "multiply_into"]
+
+
+def fma(a, b, c):
+    """a * b + c rounded once, in the precision of the arguments (float32 or float64; all three
+    of one type). In compiled kernels LLVM's ``llvm.fma``; this Python body (for
+    ``NUMBA_DISABLE_JIT=1``) rounds the exact rational value to the nearest, ties to even."""
+    exact = Fraction(float(a)) * Fraction(float(b)) + Fraction(float(c))
+    t = type(a) if isinstance(a, np.floating) else np.float64
+    x = t(float(exact))          # nearest double, then the type's: within one step of the nearest
+    best = x
+    for y in (np.nextafter(x, t(-np.inf)), np.nextafter(x, t(np.inf))):
+        if np.isfinite(y):
+            d, d0 = abs(Fraction(float(y)) - exact), abs(Fraction(float(best)) - exact)
+            if d < d0 or (d == d0 and int(y.view(np.uint32 if t is np.float32 else np.uint64)) % 2 == 0):
+                best = y
+    return best
+
+
+_FMA_LOCK = threading.Lock()
+_FMA_READY = []
+
+
+def _register_fma() -> None:
+    """Numba's implementation of :func:`fma` (``llvm.fma`` on the arguments' float type),
+    registered once, before the first kernel that calls it compiles (numba imported then)."""
+    with _FMA_LOCK:
+        if _FMA_READY:
+            return
+        from numba import types
+        from numba.extending import intrinsic, overload
+
+        @intrinsic
+        def llvm_fma(typingctx, a, b, c):
+            if not (isinstance(a, types.Float) and a == b == c):
+                return None
+
+            def codegen(context, builder, signature, args):
+                return builder.fma(*args)
+
+            return a(a, b, c), codegen
+
+        @overload(fma)
+        def fma_overload(a, b, c):
+            if isinstance(a, types.Float) and a == b == c:
+                return lambda a, b, c: llvm_fma(a, b, c)
+            return None
+
+        _FMA_READY.append(True)
+
+
+@kernel
+def _multiply_into(g, pre, out):
+    n_n, k_n = g.shape
+    for n in range(n_n):
+        src = g[n]
+        dst = out[n]
+        for k in range(k_n):
+            a = src[k]
+            b = pre[k]
+            dst[k] = complex(fma(a.real, b.real, -(a.imag * b.imag)),
+                             fma(a.real, b.imag, a.imag * b.real))
+
+
+def multiply_into(g, pre, out) -> None:
+    """out[n, k] = g[n, k] pre[k] for k < K, rounded to out's precision: NumPy's
+    ``np.multiply(g, pre, out=out[:, :K])`` bit for bit (its SIMD complex product, module
+    docstring; the product in g's precision, then cast as NumPy casts).
+
+    :param g: [N, K] complex64 or complex128, C-contiguous; pre: [K] of g's dtype; out: [N, M]
+        complex64 or complex128 (M >= K), C-contiguous
+    """
+    _register_fma()
+    _multiply_into(g, pre, out)
 
 
 @kernel
@@ -83,3 +166,4 @@ def interleave_groups(stack, bins, out, zero, add):
                 else:
                     for j in range(j_n):
                         dst[at[j]] = src[j]
+

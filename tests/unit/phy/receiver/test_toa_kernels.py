@@ -133,3 +133,85 @@ def test_doppler_spectra_is_the_numpy_product_bit_for_bit(layout):
     pad[..., k_n:] = 0
     ToAEstimator.doppler_spectra(cs, nus, tc, pad[..., :k_n])
     assert np.array_equal(pad[..., :k_n], want) and not pad[..., k_n:].any()
+
+
+@pytest.mark.parametrize("dtypes", [(np.complex64, np.complex64, np.complex64),
+                                    (np.complex128, np.complex64, np.complex64),
+                                    (np.complex128, np.complex128, np.complex128)])
+def test_multiply_into_is_numpys_complex_product_bit_for_bit(dtypes):
+    """multiply_into against np.multiply(g, pre, out=buf[:, :K]) (the chirp-z plan's fill: g
+    [N, K] times the pre-multiplier [K] into the head of a longer buffer), for the chain's
+    type combinations (pre cast to g's type first, as NumPy's type resolution does) and
+    lengths with and without a SIMD remainder: equal to the bit."""
+    g_t, pre_t, out_t = dtypes
+    rng = np.random.default_rng(13)
+    for k in (624, 103, 7, 1):
+        g = _field(rng, (135, k), g_t)
+        pre = np.exp(2j * np.pi * rng.random(k)).astype(pre_t) * rng.uniform(0.1, 1.0, k).astype(pre_t)
+        want = np.zeros((135, 1440), out_t)
+        np.multiply(g, pre, out=want[:, :k])
+        got = np.zeros((135, 1440), out_t)
+        K.multiply_into(g, pre.astype(g_t), got)
+        assert np.array_equal(got, want)
+    if out_t is not g_t:
+        return   # rounded to single precision, a double product's last bits rarely show
+    # a loop's separately rounded products are not NumPy's: the fma matters
+    g = _field(rng, (135, 624), g_t)
+    p = np.exp(2j * np.pi * rng.random(624)).astype(g_t)
+    got = np.zeros((135, 624), out_t)
+    K.multiply_into(g, p, got)
+    unfused = ((g.real * p.real - g.imag * p.imag) + 1j * (g.real * p.imag + g.imag * p.real)).astype(out_t)
+    assert not np.array_equal(got, unfused)
+
+
+def test_fma_rounds_once():
+    """fma's Python body (the kernels' code under NUMBA_DISABLE_JIT; compiled, it is checked
+    through multiply_into against NumPy above) against the exact value a b + c rounded once:
+    Fraction arithmetic is exact and float() of a Fraction rounds to nearest, so for float64
+    the two agree exactly; for float32 no neighbour is nearer the exact value. The cases
+    include cancellations where a separately rounded product differs (the point of fma)."""
+    from fractions import Fraction
+
+    rng = np.random.default_rng(17)
+    for t in (np.float64, np.float32):
+        a, b = rng.standard_normal(200).astype(t), rng.standard_normal(200).astype(t)
+        c = (-(a * b) * (1 + rng.uniform(-1e-6, 1e-6, 200))).astype(t)   # cancellation
+        for i in range(200):
+            exact = Fraction(float(a[i])) * Fraction(float(b[i])) + Fraction(float(c[i]))
+            got = K.fma(a[i], b[i], c[i])
+            assert type(got) is t
+            if t is np.float64:
+                assert got == float(exact)
+            else:
+                lo, hi = np.nextafter(got, t(-np.inf)), np.nextafter(got, t(np.inf))
+                d = abs(Fraction(float(got)) - exact)
+                assert d <= abs(Fraction(float(lo)) - exact) and d <= abs(Fraction(float(hi)) - exact)
+        unfused = a * b + c
+        fused = np.array([K.fma(x, y, z) for x, y, z in zip(a, b, c)])
+        assert np.any(fused != unfused)
+
+
+def test_zoom_plan_power_is_the_numpy_evaluation_bit_for_bit():
+    """ZoomPlan.power on the paper config's delay-Doppler map (27 x 5 x 624 complex64 spectra,
+    the Hann window, lags -16..(-16 + 256)) and on one Doppler's double-precision spectra
+    transformed in single precision (the toa32 profile), against the NumPy code the kernels
+    replace (fill by np.multiply, transforms, filter, power by NumPy's reduction): equal."""
+    import scipy.fft as sfft
+
+    from veriloc_rt.phy.receiver.toa import zoom_plan
+
+    rng = np.random.default_rng(19)
+    pos = np.arange(624)
+    win = (np.cos(np.pi * np.linspace(-0.49, 0.49, 624)) ** 2)
+    for g, w, m in ((_field(rng, (27, 5, 624), np.complex64), win.astype(np.float32), 256),
+                    (_field(rng, (5, 624), np.complex128), win, 755),
+                    (_field(rng, (5, 624), np.complex128), None, 755)):
+        plan = zoom_plan(pos, -16, m, 4096, np.dtype(np.complex64))
+        pre = plan.pre if w is None else plan.pre * w
+        buf = np.zeros(g.shape[:-1] + (plan.size,), plan.dtype)
+        np.multiply(g, pre, out=buf[..., :624])
+        x = sfft.fft(buf, axis=-1)
+        x *= plan.filter
+        y = sfft.ifft(x, axis=-1, overwrite_x=True)[..., :m]
+        want = np.sum(y.real ** 2 + y.imag ** 2, axis=-2, dtype=np.float64)
+        assert np.array_equal(plan.power(g, w), want)
