@@ -6,12 +6,12 @@ compiles few signatures. Each gives the NumPy code's bits (same operations, same
 precision; tests/unit/phy/receiver/test_toa_kernels.py compares them with ``np.array_equal``)
 and replaces it outright.
 
-Complex products: NumPy's SIMD loops (AVX2 and AVX-512 with FMA, the x86-64 machines the chain
-runs on) compute (a_r + j a_i)(b_r + j b_i) as ``fma(a_r, b_r, -(a_i b_i))`` and
-``fma(a_r, b_i, a_i b_r)``, a multiply and a fused multiply-add per part; a plain loop's
-``a * b`` rounds the two products separately. :func:`multiply_into` calls :func:`fma` (LLVM's
-``llvm.fma``, one rounding) in NumPy's order and so gives its bits; on a machine whose NumPy
-multiplies without FMA the test above fails.
+Complex products: NumPy's SIMD loops on x86-64 with FMA (its AVX2 and AVX-512 paths, which it
+picks on the machine this was measured on) compute (a_r + j a_i)(b_r + j b_i) as
+``fma(a_r, b_r, -(a_i b_i))`` and ``fma(a_r, b_i, a_i b_r)``, a multiply and a fused
+multiply-add per part; a plain loop's ``a * b`` rounds the two products separately.
+:func:`multiply_into` calls :func:`fma` (LLVM's ``llvm.fma``, one rounding) in NumPy's order and
+so gives its bits; on a machine whose NumPy multiplies without FMA that test fails.
 """
 
 from __future__ import annotations
@@ -30,8 +30,10 @@ def fma(a, b, c):
     """a * b + c rounded once, in the precision of the arguments (float32 or float64; all three
     of one type). In compiled kernels LLVM's ``llvm.fma``; this Python body (for
     ``NUMBA_DISABLE_JIT=1``) rounds the exact rational value to the nearest, ties to even."""
-    exact = Fraction(float(a)) * Fraction(float(b)) + Fraction(float(c))
     t = type(a) if isinstance(a, np.floating) else np.float64
+    if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(c)):
+        return t(a * b + c)      # inf or NaN: no rounding to get right
+    exact = Fraction(float(a)) * Fraction(float(b)) + Fraction(float(c))
     x = t(float(exact))          # nearest double, then the type's: within one step of the nearest
     best = x
     for y in (np.nextafter(x, t(-np.inf)), np.nextafter(x, t(np.inf))):
@@ -49,6 +51,8 @@ _FMA_READY = []
 def _register_fma() -> None:
     """Numba's implementation of :func:`fma` (``llvm.fma`` on the arguments' float type),
     registered once, before the first kernel that calls it compiles (numba imported then)."""
+    if _FMA_READY:
+        return
     with _FMA_LOCK:
         if _FMA_READY:
             return
