@@ -11,7 +11,8 @@ picks on the machine this was measured on) compute (a_r + j a_i)(b_r + j b_i) as
 ``fma(a_r, b_r, -(a_i b_i))`` and ``fma(a_r, b_i, a_i b_r)``, a multiply and a fused
 multiply-add per part; a plain loop's ``a * b`` rounds the two products separately.
 :func:`multiply_into` calls :func:`fma` (LLVM's ``llvm.fma``, one rounding) in NumPy's order and
-so gives its bits; on a machine whose NumPy multiplies without FMA that test fails.
+so gives its bits. Which rule this machine's NumPy follows is probed once per type
+(:func:`numpy_product_rule`): without FMA the kernel rounds both products as NumPy then does.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ import numpy as np
 
 from ..jit import kernel
 
-__all__ = ["antenna_power", "cast_blocks", "fma", "interleave_groups", "multiply_into"]
+__all__ = ["antenna_power", "cast_blocks", "fma", "interleave_groups", "multiply_into",
+           "numpy_product_rule"]
 
 
 def fma(a, b, c):
@@ -79,7 +81,7 @@ def _register_fma() -> None:
 
 
 @kernel
-def _multiply_into(g, pre, out):
+def _multiply_into(g, pre, out, fused):
     n_n, k_n = g.shape
     for n in range(n_n):
         src = g[n]
@@ -87,20 +89,58 @@ def _multiply_into(g, pre, out):
         for k in range(k_n):
             a = src[k]
             b = pre[k]
-            dst[k] = complex(fma(a.real, b.real, -(a.imag * b.imag)),
-                             fma(a.real, b.imag, a.imag * b.real))
+            if fused:
+                dst[k] = complex(fma(a.real, b.real, -(a.imag * b.imag)),
+                                 fma(a.real, b.imag, a.imag * b.real))
+            else:
+                dst[k] = complex(a.real * b.real - a.imag * b.imag,
+                                 a.real * b.imag + a.imag * b.real)
+
+
+#: by complex dtype: True when NumPy's complex product fuses (module docstring), False when it
+#: rounds both products, None when it is neither (:func:`numpy_product_rule`)
+_RULES: dict = {}
+
+
+def numpy_product_rule(dtype) -> bool | None:
+    """How this machine's NumPy multiplies complex numbers of ``dtype``: True, each part as
+    ``fma(a_r, b_r, -(a_i b_i))`` and ``fma(a_r, b_i, a_i b_r)`` (its SIMD loops with FMA);
+    False, both products rounded, then added (without FMA); None, neither on a probe of 64
+    products whose fused and unfused parts differ (kept per dtype)."""
+    dtype = np.dtype(dtype)
+    if dtype not in _RULES:
+        rng = np.random.default_rng(0)
+        t = dtype.type(0).real.dtype.type
+        a = (rng.standard_normal(64) + 1j * rng.standard_normal(64)).astype(dtype)
+        b = (rng.standard_normal(64) + 1j * rng.standard_normal(64)).astype(dtype)
+        got = a * b
+        fused = np.array([complex(fma(x.real, y.real, t(-(x.imag * y.imag))),
+                                  fma(x.real, y.imag, t(x.imag * y.real))) for x, y in zip(a, b)],
+                         dtype=dtype)
+        plain = np.array([complex(t(x.real * y.real) - t(x.imag * y.imag),
+                                  t(x.real * y.imag) + t(x.imag * y.real)) for x, y in zip(a, b)],
+                         dtype=dtype)
+        _RULES[dtype] = (True if np.array_equal(got, fused) and not np.array_equal(got, plain)
+                         else False if np.array_equal(got, plain) else None)
+    return _RULES[dtype]
 
 
 def multiply_into(g, pre, out) -> None:
     """out[n, k] = g[n, k] pre[k] for k < K, rounded to out's precision: NumPy's
-    ``np.multiply(g, pre, out=out[:, :K])`` bit for bit (its SIMD complex product, module
-    docstring; the product in g's precision, then cast as NumPy casts).
+    ``np.multiply(g, pre, out=out[:, :K])`` bit for bit (its complex product as this machine's
+    NumPy computes it, :func:`numpy_product_rule`; the product in g's precision, then cast as
+    NumPy casts; NumPy itself when its rule is neither known one).
 
     :param g: [N, K] complex64 or complex128, C-contiguous; pre: [K] of g's dtype; out: [N, M]
         complex64 or complex128 (M >= K), C-contiguous
     """
-    _register_fma()
-    _multiply_into(g, pre, out)
+    rule = numpy_product_rule(g.dtype)
+    if rule is None:
+        np.multiply(g, pre, out=out[:, :g.shape[1]])
+        return
+    if rule:
+        _register_fma()
+    _multiply_into(g, pre, out, rule)
 
 
 @kernel
