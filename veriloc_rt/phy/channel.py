@@ -36,6 +36,7 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
+from .channel_kernels import scatter_add
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
@@ -366,7 +367,6 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     k_n = ofdm.num_subcarriers
     shape = (links.num_ant, t.size, k_n)
     out = None   # made by the first link: a dense one's product is it (no zeros to add to)
-    touched = np.zeros(t.size * k_n, dtype=bool)   # REs of out (flat) some link has added to
     flat_t = t.ravel()
     grouped = not reference("delays")
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
@@ -383,19 +383,15 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
                 out = np.add(v, 0.0, out=v)
             else:
                 out += v
-            touched[:] = True
             continue
         if out is None:
             out = np.zeros(shape, dtype=np.complex128)
         idx = plan.index
         # a H X on the link's REs, group by group: the values of (amp * h) * x
         v = response.on(plan, f, flat_t, amp) * x.reshape(-1)[idx][None]        # [A, n]
-        flat = out.reshape(links.num_ant, -1)
-        if touched[idx].any():   # (0 + v on the untouched ones: v + 0, the same bits)
-            flat[:, idx] += v
-        else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
-            flat[:, idx] = np.add(v, 0.0, out=v)
-        touched[idx] = True
+        # out += v there, in place (out is 0 where no link has added: 0 + v); the plan's
+        # index is the REs of a [T, K] mask, each once
+        scatter_add(out.reshape(links.num_ant, -1), idx, v)
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
     return out.reshape(links.num_ant, *t.shape, k_n)
