@@ -36,7 +36,7 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
-from .channel_kernels import scatter_add
+from .channel_kernels import add_products, add_products_on, add_response, add_response_on, scatter_add
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
@@ -369,6 +369,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     out = None   # made by the first link: a dense one's product is it (no zeros to add to)
     flat_t = t.ravel()
     grouped = not reference("delays")
+    fused = not reference("jitchannel")
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
         x = grids[li].reshape(t.size, k_n)
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
@@ -377,6 +378,9 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         # a dense grid (a jammer's noise) gains nothing from groups
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         plan = _plan_of(occ)
+        if fused:   # one compiled pass a link: out += (amp h) x (the shortcut jitchannel)
+            out = _add_fused(out, shape, response, plan, f, flat_t, amp, x)
+            continue
         if plan is None:
             v = response(f, flat_t, amp) * x[None]         # (amp * h) * x
             if out is None:   # 0 + v: v with -0.0 made +0.0
@@ -395,6 +399,51 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
     return out.reshape(links.num_ant, *t.shape, k_n)
+
+
+#: distinct delays a link may have for its response to be formed RE by RE in the pass that
+#: applies it (shortcut ``jitchannel``; a path-loss-only link has one): one complex product an
+#: RE and antenna, cheaper than reading a kept response (16 bytes); with two or more the loop
+#: over them costs more than the read (measured: 0.7, 2.4 and 15 ms for 1, 2 and 25 delays on
+#: a [5, 140, 624] grid), and the kept response of :class:`_LinkResponses` is read instead
+FUSE_MAX_DELAYS = 1
+
+
+def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
+               plan: "REPlan | None", f: np.ndarray, t: np.ndarray, amp: float,
+               x: np.ndarray) -> np.ndarray:
+    """``out + (amp H) x`` of one link in one compiled pass (:mod:`.channel_kernels`; ``out``
+    None: a new grid, ``(amp H) x``), on the REs of ``plan`` (None: every RE), H formed RE by
+    RE from its factors (:meth:`_LinkResponses.factors`) for a link of at most
+    :data:`FUSE_MAX_DELAYS` distinct delays, else the kept response read.
+
+    :param shape: (A, T, K) of ``out``; x: [T, K] the link's grid; f: [K]; t: [T]
+    """
+    a = shape[0]
+    xf = np.ascontiguousarray(x, dtype=np.complex128)
+    num_delays = response.num_delays()
+    if num_delays == 0:   # no path: H = 0
+        return np.zeros(shape, dtype=np.complex128) if out is None else out
+    on_the_fly = num_delays <= FUSE_MAX_DELAYS
+    if on_the_fly:
+        g, e_f = response.factors(f, t)
+    if plan is None:
+        first = out is None
+        if first:
+            out = np.empty(shape, dtype=np.complex128)
+        if on_the_fly:
+            add_response(out, g, e_f, float(amp), xf, first)
+        else:
+            add_products(out.reshape(a, -1), response(f, t, amp).reshape(a, -1), xf.reshape(-1), first)
+        return out
+    if out is None:
+        out = np.zeros(shape, dtype=np.complex128)
+    if on_the_fly:
+        add_response_on(out.reshape(a, -1), plan.index, plan.rows, plan.cols, g, e_f, float(amp),
+                        xf.reshape(-1))
+    else:
+        add_products_on(out.reshape(a, -1), plan.index, response.on(plan, f, t, amp), xf.reshape(-1))
+    return out
 
 
 #: per thread (a chain may run in several threads of a Dask worker): the frequency responses
@@ -468,6 +517,30 @@ class _LinkResponses:
             self._delay_groups = [delay_groups(self.one.delays[0], self.one.valid[0])]
         return self._delay_groups
 
+    def num_delays(self) -> int:
+        """U: the link's distinct delays (``grouped``) or valid paths."""
+        return self._groups()[0][0].size if self.grouped else int(np.count_nonzero(self.one.valid))
+
+    def factors(self, freqs: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The response's factors (kept, read-only): G[a, t, u] = sum_{p: tau_p =
+        tau_u} g_ap exp(j 2 pi f_D,p t) [A, T, U] and exp(-j 2 pi f_k (tau_u - t0)) [K, U],
+        complex128, u over the link's distinct delays (``grouped``) or its valid paths;
+        H = sum_u of their products (:func:`frequency_response`'s factors)."""
+        kg, ke = ("g", times.tobytes()), ("e_f", freqs.tobytes())
+        g, e_f = self.kept.get(kg), self.kept.get(ke)
+        if g is not None and e_f is not None:
+            return g, e_f
+        if self.grouped:
+            taus, paths, starts = self._groups()[0]
+        else:
+            paths = np.flatnonzero(self.one.valid[0])
+            taus, starts = self.one.delays[0, paths], np.arange(paths.size)
+        e_t = np.exp(2j * np.pi * self.one.doppler[0, paths][:, None] * times[None, :])   # [V, T]
+        gd = self.one.gains[0][:, None, paths] * e_t.T[None]                             # [A, T, V]
+        g = np.add.reduceat(gd, starts, axis=-1) if 0 < starts.size < paths.size else gd
+        e_f = np.exp(-2j * np.pi * (taus - self.t0)[None, :] * freqs[:, None])           # [K, U]
+        return self._keep(kg, np.ascontiguousarray(g)), self._keep(ke, e_f)
+
     def __call__(self, freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
         """``scale`` H[a, t, k] of the link: [A, T, K] complex128 (read-only; the values of
         ``np.multiply(H, scale)``)."""
@@ -501,16 +574,19 @@ class REPlan:
     flat index into the T K plane, group after group, each group row-major (the order
     ``x[group_index(rows, cols)].ravel()`` reads them in).
 
-    groups : list of (rows [R] int64, cols [C] int64); index : [n] int64, read-only
+    groups : list of (rows [R] int64, cols [C] int64); index : [n] int64, read-only; rows,
+    cols : [n] int64, read-only, each RE's row (symbol) and column (subcarrier)
     """
 
-    __slots__ = ("groups", "index")
+    __slots__ = ("groups", "index", "rows", "cols")
 
     def __init__(self, groups: list, num_cols: int):
         self.groups = groups
         idx = (np.concatenate([(rows[:, None] * num_cols + cols[None, :]).ravel()
                                for rows, cols in groups]) if groups else np.zeros(0, np.int64))
-        idx.flags.writeable = False
+        self.rows, self.cols = np.divmod(idx, num_cols)
+        for a in (idx, self.rows, self.cols):
+            a.flags.writeable = False
         self.index = idx
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from .jit import kernel
 
-__all__ = ["scatter_add"]
+__all__ = ["add_products", "add_products_on", "add_response", "add_response_on", "scatter_add"]
 
 
 @kernel
@@ -25,9 +25,87 @@ def scatter_add(flat, idx, v):
 
     :param flat: [A, N] complex128; idx: [n] int64; v: [A, n] complex128
     """
+    for j in range(idx.size):   # RE by RE, the antennas inner: A streams through memory
+        i = idx[j]
+        for a in range(flat.shape[0]):
+            flat[a, i] = flat[a, i] + v[a, j]
+
+
+@kernel
+def add_products_on(flat, idx, h, x):
+    """``flat[a, idx[j]] += h[a, j] x[idx[j]]`` in place (the shortcut ``jitchannel``);
+    ``idx`` holds no entry twice, each in ``[0, flat.shape[1])``.
+
+    :param flat: [A, N] complex128; idx: [n] int64; h: [A, n] complex128; x: [N] complex128
+    """
+    for j in range(idx.size):
+        i = idx[j]
+        xi = x[i]
+        for a in range(flat.shape[0]):
+            flat[a, i] += h[a, j] * xi
+
+
+@kernel
+def add_products(flat, h, x, first):
+    """``flat[a, i] += h[a, i] x[i]`` on every entry (the shortcut ``jitchannel``); ``first``:
+    ``flat[a, i] = h[a, i] x[i]`` (an array not yet written, not read).
+
+    :param flat, h: [A, N] complex128; x: [N] complex128
+    """
     for a in range(flat.shape[0]):
         fa = flat[a]
-        va = v[a]
-        for j in range(idx.size):
-            i = idx[j]
-            fa[i] = fa[i] + va[j]
+        ha = h[a]
+        if first:
+            for i in range(x.size):
+                fa[i] = ha[i] * x[i]
+        else:
+            for i in range(x.size):
+                fa[i] += ha[i] * x[i]
+
+
+@kernel
+def add_response_on(flat, idx, rows, cols, g, e_f, scale, x):
+    """:func:`add_products_on` of a link's response formed RE by RE from its factors (the
+    shortcut ``jitchannel``): ``flat[a, idx[j]] += (h scale) x[idx[j]]`` with
+    ``h = sum_u g[a, rows[j], u] e_f[cols[j], u]`` (U >= 1 terms, summed in order).
+
+    :param flat: [A, T K] complex128; idx, rows, cols: [n] int64, each RE's flat index, symbol
+        and subcarrier
+    :param g: [A, T, U] complex128, each distinct delay's gain at each symbol time
+    :param e_f: [K, U] complex128, exp(-j 2 pi f_k (tau_u - t0)); x: [T K] complex128
+    """
+    num_u = g.shape[2]
+    for j in range(idx.size):
+        t = rows[j]
+        k = cols[j]
+        i = idx[j]
+        xi = x[i]
+        for a in range(flat.shape[0]):
+            s = g[a, t, 0] * e_f[k, 0]
+            for u in range(1, num_u):
+                s += g[a, t, u] * e_f[k, u]
+            flat[a, i] += (s * scale) * xi
+
+
+@kernel
+def add_response(flat, g, e_f, scale, x, first):
+    """:func:`add_response_on` on every RE of the grid: ``flat[a, t, k] += (h scale) x[t, k]``
+    (``first``: ``=``, not read). flat: [A, T, K]; x: [T, K] complex128."""
+    num_u = g.shape[2]
+    for a in range(flat.shape[0]):
+        for t in range(flat.shape[1]):
+            fo = flat[a, t]
+            ga = g[a, t]
+            xt = x[t]
+            if first:
+                for k in range(fo.size):
+                    s = ga[0] * e_f[k, 0]
+                    for u in range(1, num_u):
+                        s += ga[u] * e_f[k, u]
+                    fo[k] = (s * scale) * xt[k]
+            else:
+                for k in range(fo.size):
+                    s = ga[0] * e_f[k, 0]
+                    for u in range(1, num_u):
+                        s += ga[u] * e_f[k, u]
+                    fo[k] += (s * scale) * xt[k]

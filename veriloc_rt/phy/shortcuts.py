@@ -63,7 +63,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
 SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "relaytags", "toa32", "dofherk",
-             "spectra32")
+             "spectra32", "jitchannel")
 
 
 def reference(name: str) -> bool:
