@@ -36,7 +36,8 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
-from .channel_kernels import add_products, add_products_on, add_response, add_response_on, scatter_add
+from .channel_kernels import (add_products, add_products_on, add_response, add_response_on,
+                              place_scaled, scatter_add)
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
@@ -760,6 +761,10 @@ def draw_grid_noise_slots(shape: tuple, read: np.ndarray | None, variance: float
             else:
                 rng.standard_normal(out=z[bounds[i]:bounds[i + 1]])
         states.append(rng.bit_generator.state)
+    if idx is not None:   # scaled as below, onto the read REs (0 elsewhere), in one pass
+        out = np.empty((s, a) + rest, dtype=np.complex128)
+        place_scaled(out.reshape(-1), idx, z, float(scale), not single)
+        return np.moveaxis(out, 0, 1), states
     # as standard_normals scales them: float32 draws times scale into float64, float64 in place
     if single:
         n = np.empty(total, dtype=np.complex128)
@@ -767,11 +772,7 @@ def draw_grid_noise_slots(shape: tuple, read: np.ndarray | None, variance: float
     else:
         n = z.view(np.complex128)[:, 0]
         n *= scale
-    if idx is None:
-        return np.moveaxis(n.reshape((s, a) + rest), 0, 1), states
-    out = np.zeros((s, a) + rest, dtype=np.complex128)
-    out.reshape(-1)[idx] = n
-    return np.moveaxis(out, 0, 1), states
+    return np.moveaxis(n.reshape((s, a) + rest), 0, 1), states
 
 
 #: the flat indices of read masks, by the mask's memory (read-only masks only)
@@ -815,7 +816,9 @@ def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
     """
     a, s = shape[0], shape[1]
     idx = _read_index(read, s, a, tuple(shape[2:]))
-    out = np.zeros((s, a) + tuple(shape[2:]), dtype=np.complex128)
-    # the flat indices of the mask's REs in C order: the order a boolean mask fills them in
-    out.reshape(-1)[idx] = standard_normals(rng, idx.size, np.sqrt(variance / 2.0), single)
+    out = np.empty((s, a) + tuple(shape[2:]), dtype=np.complex128)
+    # the flat indices of the mask's REs in C order (the order a boolean mask fills them in),
+    # each given standard_normals' draw, scaled as it scales them (place_scaled: exact)
+    z = rng.standard_normal((idx.size, 2), dtype=np.float32 if single else np.float64)
+    place_scaled(out.reshape(-1), idx, z, float(np.sqrt(variance / 2.0)), not single)
     return np.moveaxis(out, 0, 1)

@@ -13,9 +13,12 @@ Every kernel takes C-contiguous arrays of fixed dtypes and dimensions (one compi
 
 from __future__ import annotations
 
+import numpy as np
+
 from .jit import kernel
 
-__all__ = ["add_products", "add_products_on", "add_response", "add_response_on", "scatter_add"]
+__all__ = ["add_products", "add_products_on", "add_response", "add_response_on", "place_scaled",
+           "scatter_add"]
 
 
 @kernel
@@ -109,3 +112,32 @@ def add_response(flat, g, e_f, scale, x, first):
                     for u in range(1, num_u):
                         s += ga[u] * e_f[k, u]
                     fo[k] += (s * scale) * xt[k]
+
+
+@kernel
+def place_scaled(out, idx, z, scale, complex_scale):
+    """Normals placed on a grid, 0 elsewhere: ``out[idx[j]] = (z[j, 0] + j z[j, 1]) scale``,
+    every other entry of ``out`` 0 (written: ``out`` need not be zeroed), exact: the operations
+    of NumPy's scaling, ``complex_scale`` that of the complex array ``n *= scale`` (a product
+    by ``scale + 0j``: ``z0 scale - z1 0``, ``z0 0 + z1 scale``, whose terms in 0 are exact, so a
+    fused multiply-add rounds them alike), else the float64 product of each part
+    (``np.multiply(z, scale, dtype=float64)``).
+
+    :param out: [N] complex128; idx: [n] int64, increasing, in [0, N)
+    :param z: [n, 2] float64 or float32, the draws; scale: float64
+    """
+    i = 0
+    for j in range(idx.size):
+        while i < idx[j]:   # the gap before the next normal's RE
+            out[i] = 0.0
+            i += 1
+        z0 = np.float64(z[j, 0])
+        z1 = np.float64(z[j, 1])
+        if complex_scale:
+            out[i] = complex(z0 * scale - z1 * 0.0, z0 * 0.0 + z1 * scale)
+        else:
+            out[i] = complex(z0 * scale, z1 * scale)
+        i += 1
+    while i < out.size:
+        out[i] = 0.0
+        i += 1

@@ -148,3 +148,32 @@ def test_the_reference_path_calls_no_fused_kernel(prs, monkeypatch):
     monkeypatch.delenv("VERILOC_RT_REFERENCE")
     with pytest.raises(AssertionError, match="fused kernel called"):
         apply_frequency(links, grids, np.ones(3), OFDM(nr), range(2), 0.9e-6, occ)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_place_scaled_is_numpys_scaling_and_scatter(prs, dtype):
+    """place_scaled: the bits of NumPy's scaling (float64 draws: the complex array times the
+    scale in place, a complex product; float32: the float64 product of each part) scattered
+    onto the read REs of a zeroed grid, on a chain's read mask (every TRP's PRS REs and two
+    whole symbols, 5 antennas), signed zeros among the draws included; ``out`` is written
+    everywhere (NaN before)."""
+    _, occ = prs
+    read = np.logical_or.reduce(occ)
+    read[:, [3, 10]] = True
+    idx = np.flatnonzero(np.broadcast_to(read[:, None], (2, 5) + read.shape[1:]))
+    rng = np.random.default_rng(8)
+    z = rng.standard_normal((idx.size, 2)).astype(dtype)
+    z[:8] = [[0.0, 1.0], [-0.0, 1.0], [0.0, -1.0], [-0.0, -1.0], [1.0, 0.0], [1.0, -0.0],
+             [-1.0, 0.0], [-1.0, -0.0]]
+    scale = 0.37
+    if dtype == np.float64:
+        n = z.copy().view(np.complex128)[:, 0]
+        n *= scale
+    else:
+        n = np.empty(idx.size, dtype=np.complex128)
+        np.multiply(z, scale, out=n.view(np.float64).reshape(-1, 2), dtype=np.float64)
+    want = np.zeros(2 * 5 * read[0].size, dtype=np.complex128)
+    want[idx] = n
+    got = np.full(want.shape, np.nan + 0j)
+    ck.place_scaled(got, idx, z, scale, dtype == np.float64)
+    np.testing.assert_array_equal(_bits(got), _bits(want))
