@@ -421,7 +421,8 @@ def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
     :param shape: (A, T, K) of ``out``; x: [T, K] the link's grid; f: [K]; t: [T]
     """
     a = shape[0]
-    xf = np.ascontiguousarray(x, dtype=np.complex128)
+    xf = np.ascontiguousarray(x, dtype=np.complex128).view()
+    xf.flags.writeable = False   # (a read-only view: one compilation for every caller's grids)
     num_delays = response.num_delays()
     if num_delays == 0:   # no path: H = 0
         return np.zeros(shape, dtype=np.complex128) if out is None else out
