@@ -36,8 +36,7 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
-from .channel_kernels import (add_products, add_products_on, add_response, add_response_on,
-                              place_scaled, scatter_add)
+from .channel_kernels import add_response, add_response_on, place_scaled, scatter_add
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
@@ -379,7 +378,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         # a dense grid (a jammer's noise) gains nothing from groups
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         plan = _plan_of(occ)
-        if fused:   # one compiled pass a link: out += (amp h) x (the shortcut jitchannel)
+        if fused and response.num_delays() <= FUSE_MAX_DELAYS:   # the shortcut jitchannel
             out = _add_fused(out, shape, response, plan, f, flat_t, amp, x)
             continue
         if plan is None:
@@ -402,49 +401,41 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     return out.reshape(links.num_ant, *t.shape, k_n)
 
 
-#: distinct delays a link may have for its response to be formed RE by RE in the pass that
-#: applies it (shortcut ``jitchannel``; a path-loss-only link has one): one complex product an
-#: RE and antenna, cheaper than reading a kept response (16 bytes); with two or more the loop
-#: over them costs more than the read (measured: 0.7, 2.4 and 15 ms for 1, 2 and 25 delays on
-#: a [5, 140, 624] grid), and the kept response of :class:`_LinkResponses` is read instead
+#: distinct delays a link may have for the shortcut ``jitchannel`` to apply it (a path-loss-only
+#: link has one): its response is then one complex product an RE and antenna, formed in the pass
+#: that applies it, cheaper than evaluating and keeping it; with more, the loop over the delays
+#: costs more than reading a kept response (measured: 0.7, 2.4 and 15 ms for 1, 2 and 25 delays
+#: on a [5, 140, 624] grid), and a fused pass over the kept response did not pay on the 9-TRP
+#: fast-fading chain (in-process A/B 1.004): those links take the reference path, bit for bit
 FUSE_MAX_DELAYS = 1
 
 
 def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
                plan: "REPlan | None", f: np.ndarray, t: np.ndarray, amp: float,
                x: np.ndarray) -> np.ndarray:
-    """``out + (amp H) x`` of one link in one compiled pass (:mod:`.channel_kernels`; ``out``
-    None: a new grid, ``(amp H) x``), on the REs of ``plan`` (None: every RE), H formed RE by
-    RE from its factors (:meth:`_LinkResponses.factors`) for a link of at most
-    :data:`FUSE_MAX_DELAYS` distinct delays, else the kept response read.
+    """``out + (amp H) x`` of one link of at most :data:`FUSE_MAX_DELAYS` distinct delays in one
+    compiled pass (:mod:`.channel_kernels`; ``out`` None: a new grid, ``(amp H) x``), on the REs
+    of ``plan`` (None: every RE), H formed RE by RE from its factors
+    (:meth:`_LinkResponses.factors`).
 
     :param shape: (A, T, K) of ``out``; x: [T, K] the link's grid; f: [K]; t: [T]
     """
     a = shape[0]
+    if response.num_delays() == 0:   # no path: H = 0
+        return np.zeros(shape, dtype=np.complex128) if out is None else out
     xf = np.ascontiguousarray(x, dtype=np.complex128).view()
     xf.flags.writeable = False   # (a read-only view: one compilation for every caller's grids)
-    num_delays = response.num_delays()
-    if num_delays == 0:   # no path: H = 0
-        return np.zeros(shape, dtype=np.complex128) if out is None else out
-    on_the_fly = num_delays <= FUSE_MAX_DELAYS
-    if on_the_fly:
-        g, e_f = response.factors(f, t)
+    g, e_f = response.factors(f, t)
     if plan is None:
         first = out is None
         if first:
             out = np.empty(shape, dtype=np.complex128)
-        if on_the_fly:
-            add_response(out, g, e_f, float(amp), xf, first)
-        else:
-            add_products(out.reshape(a, -1), response(f, t, amp).reshape(a, -1), xf.reshape(-1), first)
+        add_response(out, g, e_f, float(amp), xf, first)
         return out
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
-    if on_the_fly:
-        add_response_on(out.reshape(a, -1), plan.index, plan.rows, plan.cols, g, e_f, float(amp),
-                        xf.reshape(-1))
-    else:
-        add_products_on(out.reshape(a, -1), plan.index, response.on(plan, f, t, amp), xf.reshape(-1))
+    add_response_on(out.reshape(a, -1), plan.index, plan.rows, plan.cols, g, e_f, float(amp),
+                    xf.reshape(-1))
     return out
 
 

@@ -1,12 +1,12 @@
-"""Compiled kernels of the channel stage and the receiver's front end (:mod:`~veriloc_rt.phy.jit`).
+"""Compiled kernels of the channel stage (:mod:`~veriloc_rt.phy.jit`), by what they compute:
 
-Two kinds, by what they compute:
-
-* exact: the same IEEE operations on the same operands as the NumPy code they replace (copies,
-  placements, additions, real products), so the same bits; they replace it outright;
-* fused products: complex products and sums in one compiled pass, rounded as written (NumPy's SIMD
-  complex product fuses a multiply and an add, these do not), the shortcut ``jitchannel`` of
-  :mod:`~veriloc_rt.phy.shortcuts`; the NumPy code is its reference path.
+* exact, the same IEEE operations on the same operands as the NumPy code they replace, so its
+  bits (replacing it outright): :func:`scatter_add` (a link's products added into the received
+  grid), :func:`place_scaled` (the UE's noise normals scaled and placed on the REs read);
+* fused products, the shortcut ``jitchannel`` of :mod:`~veriloc_rt.phy.shortcuts`:
+  :func:`add_response_on`, :func:`add_response` (a one-delay link's response formed RE by RE
+  and applied in the same pass), complex products rounded as written (NumPy's SIMD complex
+  product fuses a multiply and an add, these do not); the NumPy code is the reference path.
 
 Every kernel takes C-contiguous arrays of fixed dtypes and dimensions (one compilation each).
 """
@@ -17,14 +17,14 @@ import numpy as np
 
 from .jit import kernel
 
-__all__ = ["add_products", "add_products_on", "add_response", "add_response_on", "place_scaled",
-           "scatter_add"]
+__all__ = ["add_response", "add_response_on", "place_scaled", "scatter_add"]
 
 
 @kernel
 def scatter_add(flat, idx, v):
     """``flat[a, idx[j]] += v[a, j]`` in place: the additions of NumPy's ``flat[:, idx] += v``
-    (exact). ``idx`` holds no entry twice, each in ``[0, flat.shape[1])`` (the caller's check).
+    (exact). ``idx`` holds no entry twice, each in ``[0, flat.shape[1])`` (the index of a
+    :class:`~veriloc_rt.phy.channel.REPlan` into the grid it was made for).
 
     :param flat: [A, N] complex128; idx: [n] int64; v: [A, n] complex128
     """
@@ -35,42 +35,11 @@ def scatter_add(flat, idx, v):
 
 
 @kernel
-def add_products_on(flat, idx, h, x):
-    """``flat[a, idx[j]] += h[a, j] x[idx[j]]`` in place (the shortcut ``jitchannel``);
-    ``idx`` holds no entry twice, each in ``[0, flat.shape[1])``.
-
-    :param flat: [A, N] complex128; idx: [n] int64; h: [A, n] complex128; x: [N] complex128
-    """
-    for j in range(idx.size):
-        i = idx[j]
-        xi = x[i]
-        for a in range(flat.shape[0]):
-            flat[a, i] += h[a, j] * xi
-
-
-@kernel
-def add_products(flat, h, x, first):
-    """``flat[a, i] += h[a, i] x[i]`` on every entry (the shortcut ``jitchannel``); ``first``:
-    ``flat[a, i] = h[a, i] x[i]`` (an array not yet written, not read).
-
-    :param flat, h: [A, N] complex128; x: [N] complex128
-    """
-    for a in range(flat.shape[0]):
-        fa = flat[a]
-        ha = h[a]
-        if first:
-            for i in range(x.size):
-                fa[i] = ha[i] * x[i]
-        else:
-            for i in range(x.size):
-                fa[i] += ha[i] * x[i]
-
-
-@kernel
 def add_response_on(flat, idx, rows, cols, g, e_f, scale, x):
-    """:func:`add_products_on` of a link's response formed RE by RE from its factors (the
-    shortcut ``jitchannel``): ``flat[a, idx[j]] += (h scale) x[idx[j]]`` with
-    ``h = sum_u g[a, rows[j], u] e_f[cols[j], u]`` (U >= 1 terms, summed in order).
+    """A link's products added into a received grid on the REs of its own (the shortcut
+    ``jitchannel``), its response formed RE by RE from its factors:
+    ``flat[a, idx[j]] += (h scale) x[idx[j]]`` with ``h = sum_u g[a, rows[j], u] e_f[cols[j], u]``
+    (U >= 1 terms, summed in order); ``idx`` holds no entry twice.
 
     :param flat: [A, T K] complex128; idx, rows, cols: [n] int64, each RE's flat index, symbol
         and subcarrier
@@ -92,8 +61,9 @@ def add_response_on(flat, idx, rows, cols, g, e_f, scale, x):
 
 @kernel
 def add_response(flat, g, e_f, scale, x, first):
-    """:func:`add_response_on` on every RE of the grid: ``flat[a, t, k] += (h scale) x[t, k]``
-    (``first``: ``=``, not read). flat: [A, T, K]; x: [T, K] complex128."""
+    """:func:`add_response_on` on every RE of the grid (a dense grid: a jammer's, the relay's):
+    ``flat[a, t, k] += (h scale) x[t, k]``; ``first``: ``=`` (a grid not yet written, not read).
+    flat: [A, T, K]; x: [T, K] complex128."""
     num_u = g.shape[2]
     for a in range(flat.shape[0]):
         for t in range(flat.shape[1]):
