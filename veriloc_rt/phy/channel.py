@@ -349,7 +349,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call). The
     groups' REs form one flat index per occupancy pattern (:class:`REPlan`, kept), and the
     response on them one array (:meth:`_LinkResponses.on`, kept): one gather, product and
-    scatter a link, the same values as group by group.
+    scatter a link (the scatter's additions compiled, :func:`~.channel_kernels.scatter_add`),
+    the same values as group by group. A link of one distinct delay (path loss only) is applied
+    in one compiled pass instead, its response formed RE by RE (:data:`FUSE_MAX_DELAYS`), unless
+    ``VERILOC_RT_REFERENCE`` names the shortcut ``jitchannel`` (read at each call).
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
