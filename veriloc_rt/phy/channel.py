@@ -36,6 +36,7 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
+from .channel_kernels import add_response, add_response_on, place_scaled, scatter_add
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
@@ -348,7 +349,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     unless ``VERILOC_RT_REFERENCE`` names the shortcut ``delays`` (read at each call). The
     groups' REs form one flat index per occupancy pattern (:class:`REPlan`, kept), and the
     response on them one array (:meth:`_LinkResponses.on`, kept): one gather, product and
-    scatter a link, the same values as group by group.
+    scatter a link (the scatter's additions compiled, :func:`~.channel_kernels.scatter_add`),
+    the same values as group by group. A link of one distinct delay (path loss only) is applied
+    in one compiled pass instead, its response formed RE by RE (:data:`FUSE_MAX_DELAYS`), unless
+    ``VERILOC_RT_REFERENCE`` names the shortcut ``jitchannel`` (read at each call).
 
     :param grids: [num_links, num_slots, 14, num_subcarriers] complex, transmitted unit-RE grids
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
@@ -366,9 +370,9 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     k_n = ofdm.num_subcarriers
     shape = (links.num_ant, t.size, k_n)
     out = None   # made by the first link: a dense one's product is it (no zeros to add to)
-    touched = np.zeros(t.size * k_n, dtype=bool)   # REs of out (flat) some link has added to
     flat_t = t.ravel()
     grouped = not reference("delays")
+    fused = not reference("jitchannel")
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
         x = grids[li].reshape(t.size, k_n)
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
@@ -377,28 +381,65 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         # a dense grid (a jammer's noise) gains nothing from groups
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         plan = _plan_of(occ)
+        if fused and response.num_delays() <= FUSE_MAX_DELAYS:   # the shortcut jitchannel
+            out = _add_fused(out, shape, response, plan, f, flat_t, amp, x)
+            continue
         if plan is None:
             v = response(f, flat_t, amp) * x[None]         # (amp * h) * x
             if out is None:   # 0 + v: v with -0.0 made +0.0
                 out = np.add(v, 0.0, out=v)
             else:
                 out += v
-            touched[:] = True
             continue
         if out is None:
             out = np.zeros(shape, dtype=np.complex128)
         idx = plan.index
         # a H X on the link's REs, group by group: the values of (amp * h) * x
         v = response.on(plan, f, flat_t, amp) * x.reshape(-1)[idx][None]        # [A, n]
-        flat = out.reshape(links.num_ant, -1)
-        if touched[idx].any():   # (0 + v on the untouched ones: v + 0, the same bits)
-            flat[:, idx] += v
-        else:   # out is 0 there: 0 + v, which is v with -0.0 made +0.0, no gather
-            flat[:, idx] = np.add(v, 0.0, out=v)
-        touched[idx] = True
+        # out += v there, in place (out is 0 where no link has added: 0 + v); the plan's
+        # index is the REs of a [T, K] mask, each once
+        scatter_add(out.reshape(links.num_ant, -1), idx, v)
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
     return out.reshape(links.num_ant, *t.shape, k_n)
+
+
+#: distinct delays a link may have for the shortcut ``jitchannel`` to apply it (a path-loss-only
+#: link has one): its response is then one complex product an RE and antenna, formed in the pass
+#: that applies it, cheaper than evaluating and keeping it; with more, the loop over the delays
+#: costs more than reading a kept response (measured: 0.7, 2.4 and 15 ms for 1, 2 and 25 delays
+#: on a [5, 140, 624] grid), and a fused pass over the kept response did not pay on the 9-TRP
+#: fast-fading chain (in-process A/B 1.004): those links take the reference path, bit for bit
+FUSE_MAX_DELAYS = 1
+
+
+def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
+               plan: "REPlan | None", f: np.ndarray, t: np.ndarray, amp: float,
+               x: np.ndarray) -> np.ndarray:
+    """``out + (amp H) x`` of one link of at most :data:`FUSE_MAX_DELAYS` distinct delays in one
+    compiled pass (:mod:`.channel_kernels`; ``out`` None: a new grid, ``(amp H) x``), on the REs
+    of ``plan`` (None: every RE), H formed RE by RE from its factors
+    (:meth:`_LinkResponses.factors`).
+
+    :param shape: (A, T, K) of ``out``; x: [T, K] the link's grid; f: [K]; t: [T]
+    """
+    a = shape[0]
+    if response.num_delays() == 0:   # no path: H = 0
+        return np.zeros(shape, dtype=np.complex128) if out is None else out
+    xf = np.ascontiguousarray(x, dtype=np.complex128).view()
+    xf.flags.writeable = False   # (a read-only view: one compilation for every caller's grids)
+    g, e_f = response.factors(f, t)
+    if plan is None:
+        first = out is None
+        if first:
+            out = np.empty(shape, dtype=np.complex128)
+        add_response(out, g, e_f, float(amp), xf, first)
+        return out
+    if out is None:
+        out = np.zeros(shape, dtype=np.complex128)
+    add_response_on(out.reshape(a, -1), plan.index, plan.rows, plan.cols, g, e_f, float(amp),
+                    xf.reshape(-1))
+    return out
 
 
 #: per thread (a chain may run in several threads of a Dask worker): the frequency responses
@@ -472,6 +513,30 @@ class _LinkResponses:
             self._delay_groups = [delay_groups(self.one.delays[0], self.one.valid[0])]
         return self._delay_groups
 
+    def num_delays(self) -> int:
+        """U: the link's distinct delays (``grouped``) or valid paths."""
+        return self._groups()[0][0].size if self.grouped else int(np.count_nonzero(self.one.valid))
+
+    def factors(self, freqs: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The response's factors (kept, read-only): G[a, t, u] = sum_{p: tau_p =
+        tau_u} g_ap exp(j 2 pi f_D,p t) [A, T, U] and exp(-j 2 pi f_k (tau_u - t0)) [K, U],
+        complex128, u over the link's distinct delays (``grouped``) or its valid paths;
+        H = sum_u of their products (:func:`frequency_response`'s factors)."""
+        kg, ke = ("g", times.tobytes()), ("e_f", freqs.tobytes())
+        g, e_f = self.kept.get(kg), self.kept.get(ke)
+        if g is not None and e_f is not None:
+            return g, e_f
+        if self.grouped:
+            taus, paths, starts = self._groups()[0]
+        else:
+            paths = np.flatnonzero(self.one.valid[0])
+            taus, starts = self.one.delays[0, paths], np.arange(paths.size)
+        e_t = np.exp(2j * np.pi * self.one.doppler[0, paths][:, None] * times[None, :])   # [V, T]
+        gd = self.one.gains[0][:, None, paths] * e_t.T[None]                             # [A, T, V]
+        g = np.add.reduceat(gd, starts, axis=-1) if 0 < starts.size < paths.size else gd
+        e_f = np.exp(-2j * np.pi * (taus - self.t0)[None, :] * freqs[:, None])           # [K, U]
+        return self._keep(kg, np.ascontiguousarray(g)), self._keep(ke, e_f)
+
     def __call__(self, freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
         """``scale`` H[a, t, k] of the link: [A, T, K] complex128 (read-only; the values of
         ``np.multiply(H, scale)``)."""
@@ -505,16 +570,19 @@ class REPlan:
     flat index into the T K plane, group after group, each group row-major (the order
     ``x[group_index(rows, cols)].ravel()`` reads them in).
 
-    groups : list of (rows [R] int64, cols [C] int64); index : [n] int64, read-only
+    groups : list of (rows [R] int64, cols [C] int64); index : [n] int64, read-only; rows,
+    cols : [n] int64, read-only, each RE's row (symbol) and column (subcarrier)
     """
 
-    __slots__ = ("groups", "index")
+    __slots__ = ("groups", "index", "rows", "cols")
 
     def __init__(self, groups: list, num_cols: int):
         self.groups = groups
         idx = (np.concatenate([(rows[:, None] * num_cols + cols[None, :]).ravel()
                                for rows, cols in groups]) if groups else np.zeros(0, np.int64))
-        idx.flags.writeable = False
+        self.rows, self.cols = np.divmod(idx, num_cols)
+        for a in (idx, self.rows, self.cols):
+            a.flags.writeable = False
         self.index = idx
 
 
@@ -688,6 +756,10 @@ def draw_grid_noise_slots(shape: tuple, read: np.ndarray | None, variance: float
             else:
                 rng.standard_normal(out=z[bounds[i]:bounds[i + 1]])
         states.append(rng.bit_generator.state)
+    if idx is not None:   # scaled as below, onto the read REs (0 elsewhere), in one pass
+        out = np.empty((s, a) + rest, dtype=np.complex128)
+        place_scaled(out.reshape(-1), idx, z, float(scale), not single)
+        return np.moveaxis(out, 0, 1), states
     # as standard_normals scales them: float32 draws times scale into float64, float64 in place
     if single:
         n = np.empty(total, dtype=np.complex128)
@@ -695,11 +767,7 @@ def draw_grid_noise_slots(shape: tuple, read: np.ndarray | None, variance: float
     else:
         n = z.view(np.complex128)[:, 0]
         n *= scale
-    if idx is None:
-        return np.moveaxis(n.reshape((s, a) + rest), 0, 1), states
-    out = np.zeros((s, a) + rest, dtype=np.complex128)
-    out.reshape(-1)[idx] = n
-    return np.moveaxis(out, 0, 1), states
+    return np.moveaxis(n.reshape((s, a) + rest), 0, 1), states
 
 
 #: the flat indices of read masks, by the mask's memory (read-only masks only)
@@ -743,7 +811,9 @@ def draw_grid_noise_on(shape: tuple, read: np.ndarray, variance: float,
     """
     a, s = shape[0], shape[1]
     idx = _read_index(read, s, a, tuple(shape[2:]))
-    out = np.zeros((s, a) + tuple(shape[2:]), dtype=np.complex128)
-    # the flat indices of the mask's REs in C order: the order a boolean mask fills them in
-    out.reshape(-1)[idx] = standard_normals(rng, idx.size, np.sqrt(variance / 2.0), single)
+    out = np.empty((s, a) + tuple(shape[2:]), dtype=np.complex128)
+    # the flat indices of the mask's REs in C order (the order a boolean mask fills them in),
+    # each given standard_normals' draw, scaled as it scales them (place_scaled: exact)
+    z = rng.standard_normal((idx.size, 2), dtype=np.float32 if single else np.float64)
+    place_scaled(out.reshape(-1), idx, z, float(np.sqrt(variance / 2.0)), not single)
     return np.moveaxis(out, 0, 1)

@@ -47,6 +47,14 @@ The shortcuts, by name:
   single-precision copy of the spectra its Doppler scan already makes, half the memory read of
   the double-precision spectra (:class:`~veriloc_rt.phy.receiver.toa.ToAEstimator`): the same
   sums of the products rounded to 2^-24 relative; results in double precision.
+* ``jitchannel``: a link of one distinct delay (a path-loss-only link, TR 38.901 UMa
+  ``pathloss_only``) added into the received grid, ``Y += (a H) X`` on the REs its grid
+  occupies, in one compiled pass (:func:`~veriloc_rt.phy.channel.apply_frequency`,
+  :mod:`~veriloc_rt.phy.channel_kernels`), its response formed RE by RE from its two factors,
+  G[a, t] exp(-j 2 pi f_k (tau - t0)), instead of evaluated symbol group by symbol group, kept,
+  and applied by NumPy's gather, product and scatter: the same products and sums in the
+  reference's order, rounded without the fused multiply-add of NumPy's complex product (the
+  last bit). Links of more delays take the reference path.
 
 The environment variable ``VERILOC_RT_REFERENCE`` selects the reference path of the shortcuts it
 names (comma separated; ``all``: every one), read when a chain is built: the same config and
@@ -63,7 +71,7 @@ __all__ = ["ENV", "SHORTCUTS", "reference"]
 ENV = "VERILOC_RT_REFERENCE"
 #: the shortcuts (module docstring)
 SHORTCUTS = ("noise", "delays", "noise32", "ulnoise", "ulnoisevar", "relaytags", "toa32", "dofherk",
-             "spectra32")
+             "spectra32", "jitchannel")
 
 
 def reference(name: str) -> bool:

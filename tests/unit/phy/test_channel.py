@@ -267,11 +267,13 @@ def _scatter_add_reference(links, grids, amps, ofdm, slots, t0):
     return out.reshape(links.num_ant, len(slots), 14, f.size)
 
 
-def test_apply_frequency_equals_the_scatter_add_bit_for_bit():
-    """apply_frequency writes a group into REs no link has touched yet (0 + v) and adds into
-    the others; against the plain scatter-add of every group (second method), bit for bit,
+def test_apply_frequency_equals_the_scatter_add_bit_for_bit(monkeypatch):
+    """apply_frequency's reference path (``VERILOC_RT_REFERENCE=jitchannel``: NumPy products,
+    the compiled scatter-add) adds into REs no link has touched yet (0 + v) and into the
+    others; against the plain scatter-add of every group (second method), bit for bit,
     signed zeros included: links 0 and 1 send on the same REs (the add), link 2 on its own
     (the write), link 3 with zero gain (0 * X = -0.0 on some REs, which 0 + v makes +0.0)."""
+    monkeypatch.setenv("VERILOC_RT_REFERENCE", "jitchannel")
     nr = NRConfig(slots_per_frame=2)
     ofdm = OFDM(nr)
     slots = range(2)
@@ -335,11 +337,13 @@ def test_a_links_response_is_computed_once_and_kept_exactly(frame):
     np.testing.assert_array_equal(first, apply_frequency(links, grids, amps, ofdm, slots, 0.5e-6))
 
 
-def test_re_plan_indexes_each_groups_res_in_their_order():
+def test_re_plan_indexes_each_groups_res_in_their_order(monkeypatch):
     """REPlan: the flat index reads a grid's occupied REs group after group, each group's block
     row-major (second method: the blocks x[group_index(rows, cols)] concatenated; exact), every
-    occupied RE once; a link applied through it (apply_frequency) gives the scatter-add
-    reference's bits, on a tagged PRS frame."""
+    occupied RE once, with its row and column; a link applied through it (apply_frequency's
+    reference path, ``VERILOC_RT_REFERENCE=jitchannel``) gives the scatter-add reference's bits,
+    on a tagged PRS frame."""
+    monkeypatch.setenv("VERILOC_RT_REFERENCE", "jitchannel")
     from veriloc_rt.phy.channel import REPlan, group_index, occupancy_groups
     from veriloc_rt.phy.security.keys import simulated_keys
 
@@ -356,6 +360,8 @@ def test_re_plan_indexes_each_groups_res_in_their_order():
     np.testing.assert_array_equal(x.ravel()[plan.index], want)
     assert np.array_equal(np.sort(plan.index), np.flatnonzero(x != 0))     # each RE once
     assert not plan.index.flags.writeable
+    np.testing.assert_array_equal(plan.rows * x.shape[1] + plan.cols, plan.index)
+    assert np.all((plan.cols >= 0) & (plan.cols < x.shape[1]))
     rng = np.random.default_rng(12)
     links = Links(1e-6 + rng.uniform(0, 2e-6, (3, 3)), rng.standard_normal((3, 2, 3)) + 1j * rng.standard_normal((3, 2, 3)),
                   rng.uniform(-150, 150, (3, 3)), np.ones((3, 3), dtype=bool))
