@@ -6,8 +6,9 @@ each in its own process, and prints one table from the runs' ``metrics.json`` (`
 against the targets (issue 42: UMa <= 60 s, ray tracing <= 240 s cold / <= 60 s warm, peak
 memory <= 4 GiB; a second seed compiles under 5 % of the kernels the first did), then the ray
 tracer's cost per link of each run that traced (its ``propagation_summary.json``). The
-ray-traced runs share a Dr.Jit kernel cache of the bench's own (``OUT/kernel-cache``, through
-``DRJIT_CACHE_DIR``) and a ray-tracing cache (``OUT/raytrace-cache``):
+ray-traced runs share a kernel cache of the bench's own (``OUT/kernel-cache``: Dr.Jit's, through
+``DRJIT_CACHE_DIR``, and the chain's Numba kernels', through ``NUMBA_CACHE_DIR``) and a
+ray-tracing cache (``OUT/raytrace-cache``):
 
 * ``raytrace cold``: both caches emptied first, as on a new user's machine;
 * ``raytrace warm``: the same run again, both caches filled (nothing is traced);

@@ -15,8 +15,9 @@
 * :func:`scenario_runner`: a :class:`~veriloc_rt.sim.runner.ScenarioRunner` of a config (of
   the installed package or of a copy under another name, for A/B timings);
 * :func:`run_cli`: ``veriloc-rt run`` in its own process, its wall seconds and ``metrics.json``;
-* :func:`kernel_cache`, :func:`kernel_count`: a Dr.Jit kernel cache folder of the bench's own
-  (``DRJIT_CACHE_DIR``), emptied for a cold run, and the kernels it holds.
+* :func:`kernel_cache`, :func:`kernel_count`: a kernel cache folder of the bench's own (Dr.Jit's,
+  ``DRJIT_CACHE_DIR``, and the chain's Numba kernels', ``NUMBA_CACHE_DIR``), emptied for a cold
+  run, and the Dr.Jit kernels it holds.
 
 The benchmarks import it as a sibling module (``python benchmarks/NAME.py`` puts this folder
 first on ``sys.path``).
@@ -168,12 +169,15 @@ def run_cli(cfg: dict, out: Path, *extra: str, env: dict | None = None) -> tuple
 
 
 def kernel_cache(folder: Path, empty: bool = False) -> dict:
-    """The environment that points Dr.Jit's kernel cache at ``folder`` (created; emptied first
-    when ``empty``): ``DRJIT_CACHE_DIR``, which Dr.Jit reads at start instead of ``~/.drjit``."""
+    """The environment that points the compiled-kernel caches at ``folder`` (created; emptied
+    first when ``empty``): ``DRJIT_CACHE_DIR``, which Dr.Jit reads at start instead of
+    ``~/.drjit``, and ``NUMBA_CACHE_DIR`` (``folder/numba``), where the chain's Numba kernels
+    (``veriloc_rt/phy/jit.py``) are kept instead of beside their modules: an emptied folder is
+    a new user's first run, which compiles both."""
     if empty:
         shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True, exist_ok=True)
-    return {"DRJIT_CACHE_DIR": str(folder.resolve())}
+    return {"DRJIT_CACHE_DIR": str(folder.resolve()), "NUMBA_CACHE_DIR": str((folder / "numba").resolve())}
 
 
 def kernel_count(folder: Path) -> int:
