@@ -25,9 +25,15 @@ def words(code: NRLDPC, rng: np.random.Generator) -> np.ndarray:
     return np.concatenate(out + [odd, big])
 
 
-@pytest.mark.parametrize("k,method", [(256, "sum_product"), (512, "sum_product"), (256, "min_sum")])
-def test_prepare_is_the_numpy_reference_bit_for_bit(k, method):
-    code = NRLDPC(k, method=method)
+@pytest.mark.parametrize("k,e,method", [(256, None, "sum_product"), (512, None, "sum_product"),
+                                         (256, None, "min_sum"), (40, 1000, "sum_product"),
+                                         (256, 4000, "sum_product")])
+def test_prepare_is_the_numpy_reference_bit_for_bit(k, e, method):
+    """The tags' rate-1/2 codes send each codeword bit once; the low-rate codes (e beyond the
+    circular buffer) send bits two to three times, so the order of the copies' sums is tested."""
+    code = NRLDPC(k, e, method=method)
+    if e is not None:
+        assert np.bincount(code.positions).max() >= 2
     flat = words(code, np.random.default_rng(3))
     total, hard, clean, cw = code.prepare(flat)
     t_ref, h_ref, c_ref, cw_ref = code.prepare_reference(flat)
