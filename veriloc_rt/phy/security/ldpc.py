@@ -152,6 +152,7 @@ class NRLDPC:
         encode_matrix = (hp_inv.astype(np.float64) @ hs.astype(np.float64)) % 2.0
         self._encode_info = np.ascontiguousarray(encode_matrix[:, :k].T, dtype=np.float32)
         self._skip = _codeword_skip(self.h, self.positions, self.k, self.k_full)
+        self._positions64 = np.ascontiguousarray(self.positions, dtype=np.int64)
 
     @functools.cached_property
     def _decoder(self):
@@ -213,15 +214,7 @@ class NRLDPC:
         bits = np.zeros((w, self.k), dtype=np.uint8)
         ok = np.zeros(w, dtype=bool)
         decodable = llr_information(flat) * self.e >= self.min_information * self.k
-        # every word's LLR per codeword bit in one call: the copies of a bit added in the order
-        # of the sent bits (bincount adds as np.add.at does: the same sums), words set apart
-        idx = (self.positions[None, :] + self.n * np.arange(w)[:, None]).ravel()
-        total = np.bincount(idx, weights=np.nan_to_num(flat).ravel(),
-                            minlength=w * self.n).reshape(w, self.n)
-        total[:, self.k:self.k_full] = _LLR_KNOWN
-        total = np.clip(total, -_LLR_KNOWN, _LLR_KNOWN)
-        hard = (total < 0).astype(np.uint8)
-        done, cw_done = _already_codewords(self._skip, total, hard)
+        total, hard, done, cw_done = self.prepare(flat)
         done &= decodable
         bits[done] = cw_done[done, :self.k]
         ok[done] = True
@@ -238,6 +231,39 @@ class NRLDPC:
             ok[i] = bool(self._decoder.converge)
         return bits.reshape(llr.shape[:-1] + (self.k,)), ok.reshape(llr.shape[:-1])
 
+    def prepare(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What :meth:`decode` starts from, for received words ``flat`` [W, e] float64: each
+        word's LLR per codeword bit ``total`` [W, n] float64 (the copies of a bit added in the
+        order of the sent bits, the fillers known, clipped to +-40), its hard decisions ``hard``
+        [W, n] uint8, and the codeword skip (:func:`_already_codewords`): ``clean`` [W] bool and
+        ``cw`` [W, n] uint8, the codeword meaningful where ``clean``. One compiled pass
+        (:func:`~veriloc_rt.phy.security.ldpc_kernels.word_totals`), the bits of
+        :meth:`prepare_reference` (tests/unit/phy/security/test_ldpc_kernels.py)."""
+        from .ldpc_kernels import word_totals
+
+        flat = np.ascontiguousarray(flat, dtype=np.float64)
+        w, sk = flat.shape[0], self._skip
+        total = np.empty((w, self.n))
+        hard = np.empty((w, self.n), dtype=np.uint8)
+        cw = np.empty((w, self.n), dtype=np.uint8)
+        clean = np.empty(w, dtype=bool)
+        word_totals(flat, self._positions64, self.k, self.k_full, _LLR_KNOWN, sk.indptr,
+                    sk.indices, sk.sent, sk.unsent, sk.single, sk.min_llr, total, hard, cw, clean)
+        return total, hard, clean, cw
+
+    def prepare_reference(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`prepare` in NumPy (its reference: the code it replaced)."""
+        w = flat.shape[0]
+        # every word's LLR per codeword bit in one call: the copies of a bit added in the order
+        # of the sent bits (bincount adds as np.add.at does: the same sums), words set apart
+        idx = (self.positions[None, :] + self.n * np.arange(w)[:, None]).ravel()
+        total = np.bincount(idx, weights=np.nan_to_num(flat).ravel(),
+                            minlength=w * self.n).reshape(w, self.n)
+        total[:, self.k:self.k_full] = _LLR_KNOWN
+        total = np.clip(total, -_LLR_KNOWN, _LLR_KNOWN)
+        hard = (total < 0).astype(np.uint8)
+        clean, cw = _already_codewords(self._skip, total, hard)
+        return total, hard, clean, cw
 
 @dataclass(frozen=True, eq=False)
 class _Skip:
@@ -253,6 +279,16 @@ class _Skip:
     unsent: np.ndarray
     single: np.ndarray
     min_llr: float
+
+    @functools.cached_property
+    def indptr(self) -> np.ndarray:
+        """[m + 1] int64, h's row pointers (the compiled pass's)."""
+        return np.ascontiguousarray(self.h.indptr, dtype=np.int64)
+
+    @functools.cached_property
+    def indices(self) -> np.ndarray:
+        """[nnz] int64, h's column indices (the compiled pass's)."""
+        return np.ascontiguousarray(self.h.indices, dtype=np.int64)
 
 
 def _codeword_skip(h: sp.csr_matrix, positions: np.ndarray, k: int, k_full: int) -> _Skip:
