@@ -395,7 +395,7 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         plan = _plan_of(occ)
         if fused and response.num_delays() <= FUSE_MAX_DELAYS:   # the shortcut jitchannel
             out = _add_fused(out, shape, response, plan, f, flat_t, amp, x, fuse_base)
-            if fuse_base is not None and plan is None and response.num_delays() > 0:
+            if fuse_base is not None and response.num_delays() > 0:
                 return out.reshape(links.num_ant, *t.shape, k_n)   # base added
             continue
         if plan is None:
@@ -439,8 +439,11 @@ def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
     (:meth:`_LinkResponses.factors`).
 
     :param shape: (A, T, K) of ``out``; x: [T, K] the link's grid; f: [K]; t: [T]
-    :param base: with ``out`` None and ``plan`` None, a new grid ``(amp H) x + base`` (base:
-        the output's shape, any layout; :func:`~.channel_kernels.add_response_base`); else unused
+    :param base: with ``out`` None, a new grid ``(amp H) x + base`` (the output's shape), the
+        bits of ``(0 + (amp H) x) + base``: dense, :func:`~.channel_kernels.add_response_base`;
+        on the REs of ``plan``, :func:`~.channel_kernels.add_response_on` into ``base + 0``
+        (``q + (b + 0)`` is ``q + b`` for every q but -0, which ``0 + v`` never is, and
+        ``-0 + (b + 0)`` is ``+0 + b``); else unused
     """
     a = shape[0]
     if response.num_delays() == 0:   # no path: H = 0
@@ -460,7 +463,8 @@ def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
         add_response(out, g, e_f, float(amp), xf, first)
         return out
     if out is None:
-        out = np.zeros(shape, dtype=np.complex128)
+        out = (np.zeros(shape, dtype=np.complex128) if base is None
+               else np.add(np.reshape(base, shape), 0.0))   # 0 + base off the link's REs
     add_response_on(out.reshape(a, -1), plan.index, plan.rows, plan.cols, g, e_f, float(amp),
                     xf.reshape(-1))
     return out
