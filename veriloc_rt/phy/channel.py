@@ -36,7 +36,8 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
-from .channel_kernels import add_response, add_response_base, add_response_on, place_scaled, scatter_add
+from .channel_kernels import (add_response, add_response_base, add_response_on, place_scaled,
+                              scatter_add)
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response

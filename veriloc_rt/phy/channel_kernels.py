@@ -5,8 +5,10 @@
   grid), :func:`place_scaled` (the UE's noise normals scaled and placed on the REs read);
 * fused products, the shortcut ``jitchannel`` of :mod:`~veriloc_rt.phy.shortcuts`:
   :func:`add_response_on`, :func:`add_response` (a one-delay link's response formed RE by RE
-  and applied in the same pass), complex products rounded as written (NumPy's SIMD complex
-  product fuses a multiply and an add, these do not); the NumPy code is the reference path.
+  and applied in the same pass), :func:`add_response_base` (that, plus a grid the link's signal
+  is added to: the adversary's onto the benign one), complex products rounded as written
+  (NumPy's SIMD complex product fuses a multiply and an add, these do not); the NumPy code is
+  the reference path.
 
 Every kernel takes C-contiguous arrays of fixed dtypes and dimensions (one compilation each).
 """
