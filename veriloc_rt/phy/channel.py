@@ -36,7 +36,8 @@ import scipy.fft as sfft
 
 from ..config.channel import REFERENCE_SAMPLE_RATE_HZ, ChannelConfig
 from ..constants import BOLTZMANN, REFERENCE_TEMPERATURE, SPEED_OF_LIGHT, dbm_to_watt
-from .channel_kernels import add_response, add_response_on, place_scaled, scatter_add
+from .channel_kernels import (add_response, add_response_base, add_response_on, place_scaled,
+                              scatter_add)
 from .nr.ofdm import OFDM
 from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
@@ -340,8 +341,9 @@ def group_index(rows: np.ndarray, cols: np.ndarray) -> tuple:
 
 
 def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofdm: OFDM, slots,
-                    t0: float, occupied: np.ndarray | None = None) -> np.ndarray:
-    """Received resource grid, noiseless: sum over links of a_l H_l X_l.
+                    t0: float, occupied: np.ndarray | None = None,
+                    base: np.ndarray | None = None) -> np.ndarray:
+    """Received resource grid, noiseless: sum over links of a_l H_l X_l (plus ``base``).
 
     H_l is evaluated only on the REs its grid occupies (:func:`occupancy_groups`; a comb-6 PRS
     with tags: 2/6 of the subcarriers of 12 of 14 symbols), which is exact: elsewhere
@@ -358,7 +360,11 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     :param amplitudes: [num_links] float64, RE scale of each transmitter (:func:`re_amplitude`)
     :param occupied: [num_links, num_slots, 14, num_subcarriers] bool, ``grids != 0`` when the
         caller knows it (a transmitter's REs: :meth:`PRSTransmitter.occupied`), else None
-    :returns: [num_ant, num_slots, 14, num_subcarriers] complex128
+    :param base: [num_ant, num_slots, 14, num_subcarriers] complex128 added to the sum (the
+        other signals at the receiver), the bits of ``y = apply_frequency(...); y += base``;
+        one link of a dense grid under ``jitchannel`` adds it in the pass that applies the
+        link (:func:`~.channel_kernels.add_response_base`), else it is added after the sum
+    :returns: [num_ant, num_slots, 14, num_subcarriers] complex128 (a new array)
     """
     grids = np.asarray(grids)
     if occupied is not None and occupied.shape != grids.shape:
@@ -373,6 +379,13 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
     flat_t = t.ravel()
     grouped = not reference("delays")
     fused = not reference("jitchannel")
+    if base is not None:
+        base = np.asarray(base)
+        if base.shape != (links.num_ant, *t.shape, k_n):
+            raise ValueError(f"Argument `base` {base.shape} must have the output's shape "
+                             f"{(links.num_ant, *t.shape, k_n)}")
+    # the base added in the one link's pass (its sum is that link's product alone)
+    fuse_base = base if links.num_links == 1 else None
     for li, amp in enumerate(np.asarray(amplitudes, dtype=float)):
         x = grids[li].reshape(t.size, k_n)
         one = Links(links.delays[li:li + 1], links.gains[li:li + 1], links.doppler[li:li + 1],
@@ -382,7 +395,9 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         occ = x != 0 if occupied is None else occupied[li].reshape(t.size, k_n)
         plan = _plan_of(occ)
         if fused and response.num_delays() <= FUSE_MAX_DELAYS:   # the shortcut jitchannel
-            out = _add_fused(out, shape, response, plan, f, flat_t, amp, x)
+            out = _add_fused(out, shape, response, plan, f, flat_t, amp, x, fuse_base)
+            if fuse_base is not None and response.num_delays() > 0:
+                return out.reshape(links.num_ant, *t.shape, k_n)   # base added
             continue
         if plan is None:
             v = response(f, flat_t, amp) * x[None]         # (amp * h) * x
@@ -401,7 +416,10 @@ def apply_frequency(links: Links, grids: np.ndarray, amplitudes: np.ndarray, ofd
         scatter_add(out.reshape(links.num_ant, -1), idx, v)
     if out is None:
         out = np.zeros(shape, dtype=np.complex128)
-    return out.reshape(links.num_ant, *t.shape, k_n)
+    out = out.reshape(links.num_ant, *t.shape, k_n)
+    if base is not None:
+        out += base
+    return out
 
 
 #: distinct delays a link may have for the shortcut ``jitchannel`` to apply it (a path-loss-only
@@ -415,13 +433,18 @@ FUSE_MAX_DELAYS = 1
 
 def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
                plan: "REPlan | None", f: np.ndarray, t: np.ndarray, amp: float,
-               x: np.ndarray) -> np.ndarray:
+               x: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
     """``out + (amp H) x`` of one link of at most :data:`FUSE_MAX_DELAYS` distinct delays in one
     compiled pass (:mod:`.channel_kernels`; ``out`` None: a new grid, ``(amp H) x``), on the REs
     of ``plan`` (None: every RE), H formed RE by RE from its factors
     (:meth:`_LinkResponses.factors`).
 
     :param shape: (A, T, K) of ``out``; x: [T, K] the link's grid; f: [K]; t: [T]
+    :param base: with ``out`` None, a new grid ``(amp H) x + base`` (the output's shape), the
+        bits of ``(0 + (amp H) x) + base``: dense, :func:`~.channel_kernels.add_response_base`;
+        on the REs of ``plan``, :func:`~.channel_kernels.add_response_on` into ``base + 0``
+        (``q + (b + 0)`` is ``q + b`` for every q but -0, which ``0 + v`` never is, and
+        ``-0 + (b + 0)`` is ``+0 + b``); else unused
     """
     a = shape[0]
     if response.num_delays() == 0:   # no path: H = 0
@@ -433,10 +456,16 @@ def _add_fused(out: np.ndarray | None, shape: tuple, response: "_LinkResponses",
         first = out is None
         if first:
             out = np.empty(shape, dtype=np.complex128)
+        if first and base is not None:
+            bf = np.ascontiguousarray(base, dtype=np.complex128).reshape(shape).view()
+            bf.flags.writeable = False   # (one compilation, as xf)
+            add_response_base(out, g, e_f, float(amp), xf, bf)
+            return out
         add_response(out, g, e_f, float(amp), xf, first)
         return out
     if out is None:
-        out = np.zeros(shape, dtype=np.complex128)
+        out = (np.zeros(shape, dtype=np.complex128) if base is None
+               else np.add(np.reshape(base, shape), 0.0))   # 0 + base off the link's REs
     add_response_on(out.reshape(a, -1), plan.index, plan.rows, plan.cols, g, e_f, float(amp),
                     xf.reshape(-1))
     return out

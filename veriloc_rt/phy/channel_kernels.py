@@ -5,8 +5,10 @@
   grid), :func:`place_scaled` (the UE's noise normals scaled and placed on the REs read);
 * fused products, the shortcut ``jitchannel`` of :mod:`~veriloc_rt.phy.shortcuts`:
   :func:`add_response_on`, :func:`add_response` (a one-delay link's response formed RE by RE
-  and applied in the same pass), complex products rounded as written (NumPy's SIMD complex
-  product fuses a multiply and an add, these do not); the NumPy code is the reference path.
+  and applied in the same pass), :func:`add_response_base` (that, plus a grid the link's signal
+  is added to: the adversary's onto the benign one), complex products rounded as written
+  (NumPy's SIMD complex product fuses a multiply and an add, these do not); the NumPy code is
+  the reference path.
 
 Every kernel takes C-contiguous arrays of fixed dtypes and dimensions (one compilation each).
 """
@@ -17,7 +19,7 @@ import numpy as np
 
 from .jit import kernel
 
-__all__ = ["add_response", "add_response_on", "place_scaled", "scatter_add"]
+__all__ = ["add_response", "add_response_base", "add_response_on", "place_scaled", "scatter_add"]
 
 
 @kernel
@@ -82,6 +84,27 @@ def add_response(flat, g, e_f, scale, x, first):
                     for u in range(1, num_u):
                         s += ga[u] * e_f[k, u]
                     fo[k] += (s * scale) * xt[k]
+
+
+@kernel
+def add_response_base(flat, g, e_f, scale, x, base):
+    """:func:`add_response` of a grid not yet written, plus ``base``, in the same pass:
+    ``flat[a, t, k] = (h scale) x[t, k] + base[a, t, k]``, the bits of :func:`add_response`
+    (``first``) followed by ``flat += base`` (the same product rounded to complex128, then the
+    same addition; complex addition is exact to reorder). flat, base: [A, T, K] complex128;
+    x: [T, K] complex128."""
+    num_u = g.shape[2]
+    for a in range(flat.shape[0]):
+        for t in range(flat.shape[1]):
+            fo = flat[a, t]
+            bo = base[a, t]
+            ga = g[a, t]
+            xt = x[t]
+            for k in range(fo.size):
+                s = ga[0] * e_f[k, 0]
+                for u in range(1, num_u):
+                    s += ga[u] * e_f[k, u]
+                fo[k] = (s * scale) * xt[k] + bo[k]
 
 
 @kernel

@@ -181,3 +181,52 @@ def test_place_scaled_is_numpys_scaling_and_scatter(prs, dtype):
     got = np.full(want.shape, np.nan + 0j)
     ck.place_scaled(got, idx, z, scale, dtype == np.float64)
     np.testing.assert_array_equal(_bits(got), _bits(want))
+
+
+@pytest.mark.parametrize("reference", ["", "jitchannel"], ids=["jitchannel", "reference"])
+def test_apply_frequency_base_is_the_sum_then_the_base(prs, monkeypatch, reference):
+    """apply_frequency(..., base=b): the bits of ``y = apply_frequency(...); y += b`` (how the
+    downlink added an adversary's signal to the benign one) for one link of a jammer's dense
+    grid (under jitchannel: add_response_base, the base added in the link's pass), one link of
+    a TRP's sparse grid (add_response_on into ``base + 0``), three links, and a link without a
+    path; signed zeros in the base and in the grid included; the base is left as it was and
+    the result is a new array."""
+    from veriloc_rt.phy import channel as ch
+    from veriloc_rt.phy.channel import add_noise
+
+    monkeypatch.setenv("VERILOC_RT_REFERENCE", reference)
+    grids, occ = prs
+    nr = NRConfig(slots_per_frame=2)
+    ofdm, slots, t0 = OFDM(nr), range(2), 0.9e-6
+    rng = np.random.default_rng(9)
+    dense = add_noise(np.zeros((1,) + grids.shape[1:]), 1.0, rng)
+    base = add_noise(np.zeros((4,) + grids.shape[1:]), 1e-3, rng)
+    base.reshape(-1)[:6] = [-0.0, 0.0, -0.0 + 0j, complex(-0.0, -0.0), 1.0, complex(0.0, -0.0)]
+    base.flags.writeable = False
+    one = _links(rng, 1, 1, 4)
+    three = _links(rng, 3, 1, 4)
+    none = Links(one.delays, one.gains * 0, one.doppler, np.zeros((1, 1), dtype=bool))
+    calls = []
+    kernel = ch.add_response_base
+    monkeypatch.setattr(ch, "add_response_base", lambda *a: calls.append(1) or kernel(*a))
+    # signed zeros where they meet: a base of -0 everywhere, and a sparse grid with -0 on some
+    # of its REs (the link's product there -0 or +0)
+    zeros = np.full(base.shape, complex(-0.0, -0.0))
+    zeros.flags.writeable = False
+    holed = grids[:1].copy()
+    holed[occ[:1]] = np.where(np.arange(np.count_nonzero(occ[:1])) % 7 == 0, -0.0,
+                              holed[occ[:1]])
+    cases = [(one, dense, None, base), (one, dense, np.ones_like(occ[:1]), base),
+             (one, grids[:1], occ[:1], base), (one, holed, occ[:1], zeros),
+             (one, dense, None, zeros), (three, grids, occ, base), (none, dense, None, base)]
+    for links, x, given, b in cases:
+        want = apply_frequency(links, x, np.full(links.num_links, 0.7), ofdm, slots, t0, given)
+        want += b
+        got = apply_frequency(links, x, np.full(links.num_links, 0.7), ofdm, slots, t0, given,
+                              base=b)
+        assert got is not b and not np.shares_memory(got, b)
+        np.testing.assert_array_equal(_bits(got), _bits(want))
+    # the three dense one-link cases by the fused kernel, unless the reference path is asked for
+    assert len(calls) == (0 if reference else 3)
+    with pytest.raises(ValueError, match="base"):
+        apply_frequency(one, dense, [1.0], ofdm, slots, t0, None, base=base[:2])

@@ -252,8 +252,9 @@ class DownlinkChannel:
             slots = self.slots[:m]
             if sig.ndim == 3:   # per RE: nothing reaches the REs its grid leaves empty
                 touched = sig[:m] != 0
-                y = apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0, touched[None])
-                y += base   # (base + y, in y's own array)
+                # base + y, in y's own array (added in the pass that applies the link)
+                y = apply_frequency(adv, sig[None, :m], amp, self.ofdm, slots, t0, touched[None],
+                                    base=base)
                 return Received(y, None, base, touched)
             iq = apply_time(adv, sig[None], amp, fs, t0, self.frame_samples, self.decimation)
             return Received(base + self.ofdm.demodulate(iq, self.slots)[:, :m], None)
