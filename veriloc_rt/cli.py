@@ -147,12 +147,12 @@ def _run(cfg, out: Path, args) -> int:
         print(line)
     print(format_metrics(res.metrics))
     t = res.timing_s
-    print(f"time: propagation {t['propagation']:.1f} s, chain {t.get('chain_total', 0):.1f} s, "
-          f"adversary {t.get('adversary_total', 0):.1f} s, detectors "
-          f"{t.get('detectors_total', 0):.1f} s; total {t['total']:.1f} s")
+    print(f"time: propagation {t['propagation']:.1f} s, total {t['total']:.1f} s (wall); CPU: "
+          f"chain {t.get('chain_total', 0):.1f} s, adversary {t.get('adversary_total', 0):.1f} s "
+          f"(summed over workers), detectors {t.get('detectors_total', 0):.1f} s")
     from .phy.chain import STAGES
 
-    print("chain by stage (s, summed over workers): " + ", ".join(
+    print("chain by stage (CPU s, summed over workers): " + ", ".join(
         f"{k} {t[f'{k}_total']:.1f}" for k in STAGES if f"{k}_total" in t))
     r = res.metrics["resources"]
     print(f"peak memory: {r['peak_rss_main_mib']:.0f} MiB main process, "

@@ -292,7 +292,7 @@ class ScenarioRunner:
         p = self.prop
         adversary = None
         if attack:
-            t = time.perf_counter()
+            t = time.thread_time()
             # a false BS's and a jammer's signals depend on the run's config and the adversary's
             # stream alone, not on the chain: chains of one PRS mode (standard, DS-tagged) share
             # them; a relay's depends on the chain's frames
@@ -306,13 +306,13 @@ class ScenarioRunner:
                                      self.geo.adversary.pos[i], self.geo.ue.pos[i], rng, adv_ue=p.adv_ue)
                 self._adversary_kept = (ak, sig)
             adversary = Adversary(p.adv_ue, sig)
-            self.timing["adversary"] += time.perf_counter() - t
+            self.timing["adversary"] += time.thread_time() - t
         plan = role.plan if timing_from is None else ChainPlan.tags_on(timing_from)
-        t = time.perf_counter()
+        t = time.thread_time()
         before = dict(role.chain.stage_s)
         res = role.chain(p.bs_ue, i, stream(self.cfg.seed, "noise", 0, i),
                          frame=self.frame0 + i, adversary=adversary, plan=plan)
-        self.timing["chain"] += time.perf_counter() - t
+        self.timing["chain"] += time.thread_time() - t
         for k in STAGES:
             self.timing[k] += role.chain.stage_s[k] - before[k]
         if not attack:
@@ -326,14 +326,14 @@ class ScenarioRunner:
         res = self.chain_result("standard", scenario, i)
         est, err, out = self._fix(res, true_xy)
         ds = self.chain_result("ds", scenario, i, res) if "ds" in self.roles else res
-        t = time.perf_counter()
+        t = time.thread_time()
         last = self.tracking.last_valid
         ref = last if last is not None else (est if np.all(np.isfinite(est)) else None)
         cov = res.position.covariance if res.position.ok else None
         x = PointInput(i, float(self.geo.ue.t[i]), res, ds, self.prop.bs_ue.tx_pos[i], ref, est,
                        cov, self._dt(prev, i))
         v = {name: det(x) for name, det in self.detectors.items()}
-        self.timing["detectors"] += time.perf_counter() - t
+        self.timing["detectors"] += time.thread_time() - t
         row = PointRow(i, float(self.geo.ue.t[i]), self._attack(scenario, i),
                        {d: ok for d, (ok, _) in v.items()}, true_xy.copy(), est, err, out,
                        stats={d: st for d, (_, st) in v.items()})
