@@ -43,7 +43,7 @@ from .shortcuts import reference
 from ..propagation.cir import CIR, array_response
 
 __all__ = ["Links", "dbm_to_watt", "draw_noise", "draw_grid_noise_on", "draw_grid_noise_slots", "thermal_noise_variance", "receiver_noise_variance", "equal_arrival_powers",
-           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "delay_groups",
+           "re_amplitude", "occupied_power_factor", "symbol_times", "frequency_response", "delay_groups", "delay_factors",
            "grouped_frequency_response", "occupancy_groups",
            "group_index", "REPlan", "apply_frequency", "apply_time",
            "add_noise", "standard_normals", "timing_reference", "symbol_layout", "subcarrier_frequencies"]
@@ -284,16 +284,25 @@ def grouped_frequency_response(links: Links, freqs: np.ndarray, times: np.ndarra
     """
     out = np.zeros((links.num_links, links.num_ant, times.size, freqs.size), dtype=np.complex128)
     for li in range(links.num_links):
-        taus, paths, starts = (delay_groups(links.delays[li], links.valid[li]) if groups is None
-                               else groups[li])
-        if paths.size == 0:
+        group = (delay_groups(links.delays[li], links.valid[li]) if groups is None
+                 else groups[li])
+        if group[1].size == 0:
             continue
-        e_t = np.exp(2j * np.pi * links.doppler[li, paths][:, None] * times[None, :])   # [V, T]
-        gd = links.gains[li][:, None, paths] * e_t.T[None]                              # [A, T, V]
-        g = np.add.reduceat(gd, starts, axis=-1) if starts.size < paths.size else gd    # [A, T, U]
-        e_f = np.exp(-2j * np.pi * (taus - t0)[:, None] * freqs[None, :])               # [U, K]
-        np.matmul(g, e_f, out=out[li])
+        np.matmul(*delay_factors(links, li, freqs, times, t0, group), out=out[li])
     return out
+
+
+def delay_factors(links: Links, li: int, freqs: np.ndarray, times: np.ndarray, t0: float,
+                  group: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The two factors of link ``li``'s response over the delays of ``group`` (``(taus, paths,
+    starts)`` as :func:`delay_groups` gives them; one path a delay: its valid paths, ``starts``
+    0..V-1): G[a, t, u] = sum_{p: tau_p = tau_u} g_ap exp(j 2 pi f_D,p t) [A, T, U] and
+    exp(-j 2 pi (tau_u - t0) f_k) [U, K], complex128; H = G @ that."""
+    taus, paths, starts = group
+    e_t = np.exp(2j * np.pi * links.doppler[li, paths][:, None] * times[None, :])   # [V, T]
+    gd = links.gains[li][:, None, paths] * e_t.T[None]                              # [A, T, V]
+    g = np.add.reduceat(gd, starts, axis=-1) if 0 < starts.size < paths.size else gd
+    return g, np.exp(-2j * np.pi * (taus - t0)[:, None] * freqs[None, :])          # [U, K]
 
 
 def occupancy_groups(occ: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]] | None:
@@ -556,15 +565,13 @@ class _LinkResponses:
         if g is not None and e_f is not None:
             return g, e_f
         if self.grouped:
-            taus, paths, starts = self._groups()[0]
+            group = self._groups()[0]
         else:
             paths = np.flatnonzero(self.one.valid[0])
-            taus, starts = self.one.delays[0, paths], np.arange(paths.size)
-        e_t = np.exp(2j * np.pi * self.one.doppler[0, paths][:, None] * times[None, :])   # [V, T]
-        gd = self.one.gains[0][:, None, paths] * e_t.T[None]                             # [A, T, V]
-        g = np.add.reduceat(gd, starts, axis=-1) if 0 < starts.size < paths.size else gd
-        e_f = np.exp(-2j * np.pi * (taus - self.t0)[None, :] * freqs[:, None])           # [K, U]
-        return self._keep(kg, np.ascontiguousarray(g)), self._keep(ke, e_f)
+            group = (self.one.delays[0, paths], paths, np.arange(paths.size))
+        g, e_f = delay_factors(self.one, 0, freqs, times, self.t0, group)
+        return (self._keep(kg, np.ascontiguousarray(g)),
+                self._keep(ke, np.ascontiguousarray(e_f.T)))                           # [K, U]
 
     def __call__(self, freqs: np.ndarray, times: np.ndarray, scale: float) -> np.ndarray:
         """``scale`` H[a, t, k] of the link: [A, T, K] complex128 (read-only; the values of

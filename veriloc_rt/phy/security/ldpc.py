@@ -265,6 +265,7 @@ class NRLDPC:
         clean, cw = _already_codewords(self._skip, total, hard)
         return total, hard, clean, cw
 
+
 @dataclass(frozen=True, eq=False)
 class _Skip:
     """What :func:`_already_codewords` needs of a code: h [m, n] int32 CSR, its parity checks;
