@@ -61,8 +61,11 @@ def window_points():
         r.compute_chains("none", int(i))
         r.clear_cache()
 
-benign_points()
-window_points()
+import time
+for part in (benign_points, window_points):
+    t = time.thread_time()
+    part()
+    print(part.__name__, time.thread_time() - t)
 """
 
 #: classes by the innermost frame's text (a function and its file or library), first match wins
@@ -110,11 +113,20 @@ def main() -> int:
     if shutil.which(args.py_spy) is None and not Path(args.py_spy).is_file():
         print(f"error: --py-spy: {args.py_spy} not found (pip install py-spy)", file=sys.stderr)
         return 2
+    child = [sys.executable, "-c", CHILD, str(ROOT / "benchmarks"), args.config, str(args.points)]
+    # the same points without the profiler: py-spy pauses the process for each native stack
+    # (a few ms), which slows it and cools its caches; the slow-down is printed with the table
+    plain = subprocess.run(child, cwd=ROOT, capture_output=True, text=True)
+    if plain.returncode != 0:
+        print(f"error: {args.config}: {(plain.stderr or plain.stdout).strip().splitlines()[-1:]}",
+              file=sys.stderr)
+        return 2
+    alone = {line.split()[0]: float(line.split()[1]) for line in plain.stdout.splitlines()
+             if line.split()[:1] in (["benign_points"], ["window_points"])}
     with tempfile.TemporaryDirectory(prefix="native_profile_") as tmp:
         raw = Path(tmp) / "raw.txt"
         cmd = [args.py_spy, "record", "--native", "-r", str(args.rate), "-f", "raw", "-o",
-               str(raw), "--", sys.executable, "-c", CHILD, str(ROOT / "benchmarks"),
-               args.config, str(args.points)]
+               str(raw), "--"] + child
         r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
         if r.returncode != 0 or not raw.is_file():
             print(f"error: py-spy: {(r.stderr or r.stdout).strip().splitlines()[-1:]}",
@@ -143,6 +155,9 @@ def main() -> int:
         print(f"| {name} | {100 * counts['benign_points'][name] / tot['benign_points']:.1f} | "
               f"{100 * counts['window_points'][name] / tot['window_points']:.1f} |")
     print(f"| samples | {tot['benign_points']} | {tot['window_points']} |")
+    print("| ms a point: unprofiled (thread CPU); profiled (samples / rate) | "
+          + " | ".join(f"{1e3 * alone[p] / args.points:.0f}; {1e3 * tot[p] / args.rate / args.points:.0f}"
+                       for p in ("benign_points", "window_points")) + " |")
     for name in names:
         for frame, n in frames_of[name].most_common(args.show):
             print(f"  {name}: {n} {frame}")
