@@ -1,5 +1,5 @@
 """The channel stage's compiled kernels (``veriloc_rt/phy/channel_kernels.py``) against the NumPy
-code, and what compiling them costs.
+code (what compiling them costs: ``benchmarks/bench_jit_compile.py``, every kernel of the chain).
 
 Kernels (in-process, thread CPU, the best of ``--passes`` passes of ``--reps`` calls each,
 the two versions alternating pass by pass, after a warm-up call that compiles), on the paper
@@ -15,13 +15,8 @@ with HMAC tags, their masks read-only as a transmitter's are):
   the compiled placement (``place_scaled``) against NumPy's scaling and scatter, written out
   here as it was; the normals themselves are the same in both.
 
-``--compile``: the seconds of each kernel's first calls in a new process from an empty Numba
-cache (``NUMBA_CACHE_DIR``, a temporary folder: compiled) and in a second process (loaded from
-that cache), the first benign and attack-window points of ``configs/paper-uma.json``'s chains
-computed in each (every kernel signature the paper chain uses), with Numba's import.
-
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_jitchannel.py [--passes 5]
-        [--reps 10] [--delays 1] [--compile]
+        [--reps 10] [--delays 1]
 """
 
 from __future__ import annotations
@@ -31,16 +26,11 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # as in the engine's worker processes
 
 import argparse  # noqa: E402
-import json  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
-import tempfile  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 SHAPE = (5, 10, 14, 624)
 
 
@@ -162,65 +152,12 @@ def bench_noise(passes: int, reps: int) -> None:
               f"ratio {r['jit'] / r['numpy']:.3f}; the normals alone {normals:.2f} ms")
 
 
-CHILD = r"""
-import json, os, sys, tempfile, time
-t = time.perf_counter()
-import numba  # noqa: F401
-numba_import = time.perf_counter() - t
-sys.path.insert(0, sys.argv[1])
-from pathlib import Path
-import numpy as np
-import harness
-from veriloc_rt.phy import channel as ch, channel_kernels as ck
-
-first = {}
-def timed(name, f):
-    seen = set()
-    def call(*args):
-        key = tuple((a.dtype.str, a.ndim, a.flags.writeable) if isinstance(a, np.ndarray) else type(a)
-                    for a in args)
-        t = time.perf_counter()
-        out = f(*args)
-        if key not in seen:
-            seen.add(key)
-            first.setdefault(name, []).append(time.perf_counter() - t)
-        return out
-    return call
-for name in ck.__all__:
-    if hasattr(ch, name):
-        setattr(ch, name, timed(name, getattr(ch, name)))
-r = harness.scenario_runner("configs/paper-uma.json", None, Path(tempfile.mkdtemp()), changes={})
-for i in (int(np.flatnonzero(~r.window)[0]), int(np.flatnonzero(r.window)[0])):
-    r.compute_chains("none", i)
-    r.clear_cache()
-print(json.dumps({"numba_import": numba_import, "first": first}))
-"""
-
-
-def bench_compile() -> None:
-    with tempfile.TemporaryDirectory(prefix="vr_numba_cache_") as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache, OPENBLAS_NUM_THREADS="1")
-        for label in ("empty cache (compiled)", "filled cache (loaded)"):
-            r = subprocess.run([sys.executable, "-c", CHILD, str(ROOT / "benchmarks")], env=env,
-                               cwd=ROOT, capture_output=True, text=True, check=True)
-            res = json.loads(r.stdout.strip().splitlines()[-1])
-            per = {k: sum(v) for k, v in res["first"].items()}
-            sigs = sum(len(v) for v in res["first"].values())
-            print(f"{label}: Numba import {res['numba_import']:.2f} s; first calls of {sigs} kernel "
-                  f"signatures {sum(per.values()):.2f} s ("
-                  + ", ".join(f"{k} {v:.2f}" for k, v in sorted(per.items())) + ")")
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--passes", type=int, default=5)
     ap.add_argument("--reps", type=int, default=10)
     ap.add_argument("--delays", type=int, default=1)
-    ap.add_argument("--compile", action="store_true")
     args = ap.parse_args()
-    if args.compile:
-        bench_compile()
-        return 0
     bench_apply(args.passes, args.reps, args.delays)
     bench_noise(args.passes, args.reps)
     return 0

@@ -24,26 +24,41 @@ import logging
 import threading
 import time
 
-__all__ = ["kernel"]
+__all__ = ["first_calls", "kernel"]
 
 log = logging.getLogger(__name__)
 
 _LOCK = threading.Lock()
+#: seconds of each kernel signature's first call in this process (compiled, or loaded from the
+#: cache, plus one run), by kernel name, in call order
+_FIRST: dict[str, list[float]] = {}
+#: s: a call at least this long may have compiled or loaded a new signature (loading one from
+#: the on-disk cache takes milliseconds; a compilation, a tenth of a second or more)
+_NEW_SIGNATURE_S = 5e-4
+
+
+def first_calls() -> dict[str, list[float]]:
+    """The seconds of each kernel's new argument signatures' first calls in this process
+    (compile or load from the on-disk cache, plus that call's run), by the kernel's qualified
+    name: what a process pays before its kernels run (``benchmarks/bench_jit_compile.py``)."""
+    with _LOCK:
+        return {k: list(v) for k, v in _FIRST.items()}
 
 
 def kernel(fn=None, **options):
     """Decorator: ``fn`` compiled by ``numba.njit(cache=True, nogil=True, **options)`` at its
     first call (Numba imported then). The wrapper keeps the plain function as ``py_func``.
 
-    Each new argument signature compiles (or loads from the cache) at its first call; calls
-    that took longer than 0.2 s are logged at DEBUG with their seconds.
+    Each new argument signature compiles (or loads from the cache) at its first call, logged at
+    DEBUG with its seconds and kept for :func:`first_calls`.
     """
     def wrap(f):
         compiled = None
+        signatures = 0
 
         @functools.wraps(f)
         def call(*args):
-            nonlocal compiled
+            nonlocal compiled, signatures
             if compiled is None:
                 with _LOCK:
                     if compiled is None:
@@ -53,7 +68,12 @@ def kernel(fn=None, **options):
             t = time.perf_counter()
             out = compiled(*args)
             dt = time.perf_counter() - t
-            if dt > 0.2:
+            # a new signature (compiled, or loaded from the cache: milliseconds at least) adds
+            # an overload; looked at only after a call that long, not on every call
+            if dt > _NEW_SIGNATURE_S and len(getattr(compiled, "overloads", ())) != signatures:
+                with _LOCK:
+                    signatures = len(compiled.overloads)
+                    _FIRST.setdefault(f.__qualname__, []).append(dt)
                 log.debug("kernel %s: %.2f s (compiled or loaded for new argument types)",
                           f.__qualname__, dt)
             return out

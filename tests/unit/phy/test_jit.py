@@ -6,7 +6,7 @@ import subprocess
 import sys
 import numpy as np
 
-from veriloc_rt.phy.jit import kernel
+from veriloc_rt.phy.jit import first_calls, kernel
 
 @kernel
 def _weighted_sum(x, w):
@@ -23,6 +23,23 @@ def test_kernel_computes_its_python_function_in_order():
     x, w = rng.standard_normal(1001), rng.standard_normal(1001)
     assert _weighted_sum(x, w) == _weighted_sum.py_func(x, w)
     assert abs(_weighted_sum(x, w) - float(x @ w)) < 1e-12 * np.abs(x * w).sum()
+
+
+def test_first_calls_counts_each_new_signature_once():
+    # one entry per argument signature's first call (what the compile bench sums), none for a
+    # repeated signature: float64 then float32 arrays add at most one entry each
+    name = _weighted_sum.__qualname__
+    x = np.arange(5.0)
+    _weighted_sum(x, x)
+    before = len(first_calls().get(name, []))
+    assert before >= 1
+    _weighted_sum(x, x)
+    assert len(first_calls()[name]) == before
+    y = x.astype(np.float32)
+    _weighted_sum(y, y)
+    _weighted_sum(y, y)
+    assert len(first_calls()[name]) == before + 1
+    assert all(s > 0 for s in first_calls()[name])
 
 
 def test_numba_is_imported_at_the_first_kernel_call_only(tmp_path):
