@@ -14,7 +14,8 @@ into it and ``run.json``: :mod:`~veriloc_rt.sim.run_folder`.
 Executors: the detectors carry state from point to point and run here, in order; the chains of
 the points ahead go to forked local processes (``workers``) or, in trajectory chunks, to a Dask
 cluster (``scheduler``), with the serial run's numbers either way (see the executors in
-:mod:`~veriloc_rt.sim.executors`). Monte Carlo over realisations: :mod:`~veriloc_rt.sim.montecarlo`.
+:mod:`~veriloc_rt.sim.executors`). With either, the figures are drawn by one more forked process
+while the run goes on (:mod:`~veriloc_rt.sim.background`). Monte Carlo over realisations: :mod:`~veriloc_rt.sim.montecarlo`.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ from ..report.scene_plot import plot_top_view
 from ..world.geometry import Geometry, build_geometry
 from ..world.sites import strongest_serving
 from .checks import check_run_inputs, warn_silent_bs, warn_unreachable
+from .background import Figures
 from .executors import DaskChains, ForkPool, LocalChains, check_workers, scheduler_client
 from .chain_store import ChainStore, config_digest
 from .run_folder import (CHAIN_FILE, MAX_RESULTS_BYTES, check_fresh, check_resume,
@@ -262,9 +264,12 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
                 check_resume(out, cfg)
             else:
                 check_fresh(out, cfg, force)
+        # figures drawn in forked children while the run goes on, when it runs in more
+        # than one process anyway (joined before it ends; stopped with it)
+        figures = stack.enter_context(Figures(parallel=workers > 1 or client is not None))
         try:
             return _run(cfg, out, progress, resume, workers, client, cache_dir, save_cir,
-                        geometry)
+                        geometry, figures)
         except BaseException:   # Ctrl-C, SIGTERM, a full disk, an error: resumable
             if out is not None:
                 mark_stopped(out)
@@ -273,7 +278,11 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
 
 def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool, workers: int,
          client, cache_dir: str | Path | None = "default", save_cir: bool = False,
-         given: Geometry | None = None) -> Results:
+         given: Geometry | None = None, figures: Figures | None = None) -> Results:
+    """The run in ``out`` (locked and checked); its figures go to ``figures`` (None: drawn
+    here)."""
+    if figures is None:
+        figures = Figures(parallel=False)
     timing: dict = {}     # seconds only
     resources: dict = {}  # workers, scheduler, peak memory
     t0 = time.perf_counter()
@@ -291,14 +300,16 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
             clear_run_files(out)
         # before tracing: a run stopped there can be resumed
         write_run_json(out, cfg, "running", timing, fields)
-        if not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
-            plot_top_view(geometry, out / "scene_top_view.png",
-                          serving=run_serving(geometry) if given is not None else None)
+    if out and not (resume and (out / "scene_top_view.png").exists()):  # (a new run cleared it)
+        figures.submit(plot_top_view, geometry, out / "scene_top_view.png",
+                       serving=run_serving(geometry) if given is not None else None)
     t1 = time.perf_counter()
     if geometry.candidates is not None and given is None:
         geometry, prop = traced_power_serving(cfg, geometry, progress, cache_dir, workers)
         if out:   # drawn before the choice with every candidate alike: now the chosen apart
-            plot_top_view(geometry, out / "scene_top_view.png", serving=run_serving(geometry))
+            # (after the first drawing: the figures are drawn in the order given)
+            figures.submit(plot_top_view, geometry, out / "scene_top_view.png",
+                           serving=run_serving(geometry))
     else:
         prop = compute_propagation(cfg, geometry, progress, cache_dir, workers=workers)
     timing["propagation"] = time.perf_counter() - t1
@@ -323,7 +334,8 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
             resources["scheduler"] = client.scheduler.address
         elif workers > 1:
             pool = ForkPool(runner, workers)
-        rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing, store)
+        rows, metrics = _run_scenarios(cfg, runner, pool, out, resume, progress, timing, store,
+                                       figures)
     except BaseException:
         if pool is not None:
             pool.terminate()
@@ -351,11 +363,11 @@ def _run(cfg: Config, out: Path | None, progress: Progress | None, resume: bool,
                 m["uninformative_detectors"] = list(analysis.uninformative)
     if out:
         atomic_write_text(out / "metrics.json", json_text(metrics))
-        _write_plots(out, metrics)
+        figures.submit(_write_plots, out, metrics)
         if analysis is not None:
             write_roc_csv(out / "roc.csv", analysis)
-            plot_roc(analysis, out / "roc.png",
-                     title=ROC_TITLE)
+            figures.submit(plot_roc, analysis, out / "roc.png", title=ROC_TITLE)
+        figures.close()
         write_run_json(out, cfg, "complete", timing, fields)
     return Results(cfg, geometry, prop, summary, timing, out, rows, metrics)
 
@@ -408,9 +420,13 @@ def _restore_chains(runner: ScenarioRunner, store: ChainStore, saved: dict) -> N
 
 def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
                    progress: Progress | None, timing: dict,
-                   store: ChainStore | None = None) -> tuple[dict, dict]:
+                   store: ChainStore | None = None,
+                   figures: Figures | None = None) -> tuple[dict, dict]:
     """Every scenario point by point: chains from ``pool`` (None: here), detectors here; each
-    point's new chain results go to ``store`` before its row is written."""
+    point's new chain results go to ``store`` before its row is written; each scenario's
+    figures go to ``figures`` (None: drawn here)."""
+    if figures is None:
+        figures = Figures(parallel=False)
     n = runner.geo.num_points
     rows: dict = {}
     metrics: dict = {"scenarios": {}}
@@ -464,7 +480,7 @@ def _run_scenarios(cfg: Config, runner, pool, out: Path | None, resume: bool,
         # was complete already (written by this run: a new run clears them)
         if out and not (complete and all((out / f"{scenario}_{k}.png").exists()
                                          for k in ("timeseries", "map"))):
-            _scenario_plots(out, cfg, runner.geo, scenario)
+            figures.submit(_scenario_plots, out, cfg, runner.geo, scenario)
         metrics["scenarios"][scenario] = scenario_metrics(done, scenario)
         timing[f"scenario_{scenario}"] = time.perf_counter() - t_s
     return rows, metrics

@@ -32,6 +32,7 @@ from .runner import ScenarioRunner
 log = logging.getLogger(__name__)
 
 __all__ = ["LocalChains", "ForkPool", "DaskChains", "check_workers", "scheduler_client",
+           "init_forked_worker",
            "connect", "probe_scheduler", "local_cluster", "dask_failure", "named_failures",
            "CONNECT_TIMEOUT_S"]
 
@@ -96,7 +97,7 @@ class ForkPool:
     def __init__(self, runner: ScenarioRunner, workers: int):
         global _WORKER
         _WORKER = runner
-        self.pool = mp.get_context("fork").Pool(workers, initializer=_init_worker,
+        self.pool = mp.get_context("fork").Pool(workers, initializer=init_forked_worker,
                                                 initargs=(os.getpid(),))
 
     def imap(self, scenario: str, points: list[int]):
@@ -110,7 +111,7 @@ class ForkPool:
         self.pool.terminate()
 
 
-def _init_worker(parent: int) -> None:
+def init_forked_worker(parent: int) -> None:
     """Workers leave Ctrl-C to the parent, which terminates them and keeps the finished rows;
     and they end with the parent. A killed parent (SIGKILL) cannot terminate them, and a pool
     worker whose parent is gone waits for tasks for ever, holding what it inherited: the run
