@@ -72,32 +72,73 @@ class _Blob(list):
         return offset
 
 
+def _enc_array(obj, blob: _Blob):
+    a = np.asarray(obj)
+    if a.dtype.hasobject:
+        raise TypeError("object arrays are not stored")
+    fortran = bool(a.flags.f_contiguous and not a.flags.c_contiguous)  # as np.save keeps it
+    data = (a.T if fortran else a).tobytes()
+    offset = blob.add(data)
+    return {"a" if isinstance(obj, np.ndarray) else "s":
+            [a.dtype.str, list(a.shape), offset, len(data), fortran]}
+
+
+def _enc_dataclass(obj, blob: _Blob):
+    name, fields = _fields(type(obj))
+    return {"c": name, "v": {f: _enc(getattr(obj, f), blob) for f in fields}}
+
+
+@functools.lru_cache(maxsize=None)
+def _fields(cls: type) -> tuple[str, tuple[str, ...]]:
+    """A dataclass's stored name and its fields' names (looked up once per class: a store
+    holds the same few classes in every record)."""
+    return f"{cls.__module__}:{cls.__qualname__}", tuple(f.name for f in dataclasses.fields(cls))
+
+
+def _same(obj, blob: _Blob):
+    return obj
+
+
+#: the node of an object by its exact type (the types of almost every node of a record);
+#: other types take :func:`_enc_other`'s checks, which give each type the same node
+_ENCODERS = {
+    type(None): _same, bool: _same, str: _same,
+    int: lambda obj, blob: {"i": str(obj)},
+    float: lambda obj, blob: {"f": obj.hex()},
+    list: lambda obj, blob: [_enc(x, blob) for x in obj],
+    tuple: lambda obj, blob: {"t": [_enc(x, blob) for x in obj]},
+    dict: lambda obj, blob: {"d": [[_enc(k, blob), _enc(v, blob)] for k, v in obj.items()]},
+    np.ndarray: _enc_array,
+}
+
+
 def _enc(obj, blob: _Blob):
+    enc = _ENCODERS.get(type(obj))
+    if enc is not None:
+        return enc(obj, blob)
+    return _enc_other(obj, blob)
+
+
+def _enc_other(obj, blob: _Blob):
     if isinstance(obj, (np.ndarray, np.generic)):   # first: np.float64 is a float, np.str_ a str
-        a = np.asarray(obj)
-        if a.dtype.hasobject:
-            raise TypeError("object arrays are not stored")
-        fortran = bool(a.flags.f_contiguous and not a.flags.c_contiguous)  # as np.save keeps it
-        data = (a.T if fortran else a).tobytes()
-        offset = blob.add(data)
-        return {"a" if isinstance(obj, np.ndarray) else "s":
-                [a.dtype.str, list(a.shape), offset, len(data), fortran]}
+        if type(obj) is not np.ndarray and isinstance(obj, np.generic):
+            _ENCODERS[type(obj)] = _enc_array   # a NumPy scalar type: the same node next time
+        return _enc_array(obj, blob)
     if obj is None or isinstance(obj, (bool, str)):
         return obj
     if isinstance(obj, int):
-        return {"i": str(obj)}
+        return _ENCODERS[int](obj, blob)
     if isinstance(obj, float):
-        return {"f": obj.hex()}
+        return _ENCODERS[float](obj, blob)
     if isinstance(obj, list):
-        return [_enc(x, blob) for x in obj]
+        return _ENCODERS[list](obj, blob)
     if isinstance(obj, tuple):
-        return {"t": [_enc(x, blob) for x in obj]}
+        return _ENCODERS[tuple](obj, blob)
     if isinstance(obj, dict):
-        return {"d": [[_enc(k, blob), _enc(v, blob)] for k, v in obj.items()]}
+        return _ENCODERS[dict](obj, blob)
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        cls = type(obj)
-        return {"c": f"{cls.__module__}:{cls.__qualname__}",
-                "v": {f.name: _enc(getattr(obj, f.name), blob) for f in dataclasses.fields(obj)}}
+        _ENCODERS[type(obj)] = _enc_dataclass   # the same node for the class next time
+        return _enc_dataclass(obj, blob)
     raise TypeError(f"cannot store a {type(obj).__name__}")
 
 
