@@ -52,7 +52,8 @@ class NoiseSource(ABC):
         """
 
     def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                    read: np.ndarray | None, single: bool = False) -> np.ndarray:
+                    read: np.ndarray | None, single: bool = False,
+                    overwrite_x: bool = False) -> np.ndarray:
         """As the call, told which REs of a grid the receiver reads: a source may leave the
         others without noise (this one gives every RE its noise), and may draw its normals in
         single precision (this one does not).
@@ -60,6 +61,8 @@ class NoiseSource(ABC):
         :param read: grids only: [S', 14, K] bool (S' >= S), the REs read (None: every RE)
         :param single: single-precision normals allowed (the shortcut ``noise32`` of
             :mod:`veriloc_rt.phy.shortcuts`: :func:`~veriloc_rt.phy.channel.standard_normals`)
+        :param overwrite_x: the caller will not read ``x`` again: a source may add the noise
+            into it and return it (the same values as a new array)
         """
         return self(x, variance, rng)
 
@@ -85,7 +88,8 @@ class WhiteNoise(NoiseSource):
         return add_noise(x, variance, rng, major_axis=1 if x.ndim == 4 else 0)
 
     def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                    read: np.ndarray | None, single: bool = False) -> np.ndarray:
+                    read: np.ndarray | None, single: bool = False,
+                    overwrite_x: bool = False) -> np.ndarray:
         if x.ndim != 4:
             read = None
         if (read is None and not single) or variance <= 0 or _overrides_call(self, WhiteNoise):
@@ -126,14 +130,20 @@ class KeptWhiteNoise(WhiteNoise):
         return self.add_on_read(x, variance, rng, None)
 
     def add_on_read(self, x: np.ndarray, variance: float, rng: np.random.Generator,
-                    read: np.ndarray | None, single: bool = False) -> np.ndarray:
+                    read: np.ndarray | None, single: bool = False,
+                    overwrite_x: bool = False) -> np.ndarray:
         if variance <= 0 or not isinstance(rng, np.random.Generator):
             return WhiteNoise.__call__(self, x, variance, rng)   # a copy, or the type error
         if _overrides_call(self, KeptWhiteNoise):
             return self(x, variance, rng)
         single = bool(single)
         if x.ndim == 4:
-            return self.grid_noise(x.shape, variance, rng, read, single) + x
+            noise = self.grid_noise(x.shape, variance, rng, read, single)
+            if overwrite_x and x.dtype == np.complex128 and x.flags.writeable:
+                # x + noise in x's own array: the bits of noise + x (a sum's parts commute),
+                # without a new grid (7 MB on the paper config: 1-2 ms a call)
+                return np.add(x, noise, out=x)
+            return noise + x
 
         def draw():
             n = draw_noise(x.shape, variance, rng, 0, single)

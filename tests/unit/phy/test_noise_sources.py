@@ -206,3 +206,33 @@ def test_grid_noise_drawn_slot_by_slot_is_the_one_draws(single):
             else:
                 draw_noise(sub, 1.3, g, 1, single)
             assert states[s] == g.bit_generator.state
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_kept_noise_added_into_the_callers_grid_has_the_new_arrays_bits(masked):
+    """KeptWhiteNoise.add_on_read with overwrite_x: the noise added into x's own array, the
+    same bits as the new array of the default (second method: that call, from the same
+    generator state; complex addition commutes exactly); a read-only x or another dtype gets
+    a new array and stays as it was."""
+    shape = (2, 3, 14, 24)
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal(shape) + 1j * rng.standard_normal(shape)
+    read = rng.uniform(size=shape[1:]) < 0.5 if masked else None
+    want = KeptWhiteNoise().add_on_read(x.copy(), 0.3, np.random.default_rng(5), read, True)
+    mine = x.copy()
+    got = KeptWhiteNoise().add_on_read(mine, 0.3, np.random.default_rng(5), read, True,
+                                       overwrite_x=True)
+    assert got is mine
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+    assert not np.array_equal(got, x)                  # the noise is there
+    frozen = x.copy()
+    frozen.flags.writeable = False
+    got = KeptWhiteNoise().add_on_read(frozen, 0.3, np.random.default_rng(5), read, True,
+                                       overwrite_x=True)
+    assert got is not frozen
+    np.testing.assert_array_equal(frozen, x)
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+    x64 = x.astype(np.complex64)
+    got = KeptWhiteNoise().add_on_read(x64, 0.3, np.random.default_rng(5), read, True,
+                                       overwrite_x=True)
+    assert got.dtype == np.complex128 and got is not x64

@@ -225,7 +225,7 @@ class DownlinkChannel:
                 x = apply_time(dl.links, frame.waveform, dl.amplitudes, self.ofdm.sample_rate_hz, t0,
                                self.buffer_samples, self.decimation)
             x = self.noise.add_on_read(x, self.noise_var, rng, self.read_mask(frame),
-                                      self.single_noise)
+                                      self.single_noise, overwrite_x=True)   # x is ours
             x.flags.writeable = False
             return x
 
