@@ -16,7 +16,8 @@ scenario's). A figure's file is written atomically (:func:`~veriloc_rt.fileio.at
 a stopped run leaves no half-written one, and a resumed run draws again those it does not find.
 The process is forked, like the chain workers, and leaves Ctrl-C to the engine and ends with
 it (:func:`~veriloc_rt.sim.executors.init_forked_worker`); a figure's arguments reach it
-pickled (a geometry: 50-250 kB).
+pickled (a geometry: 50-250 kB), through a queue that does not wait for the process. If the
+process is killed, the wait raises :class:`FigureError` instead of waiting for ever.
 """
 
 from __future__ import annotations
@@ -24,14 +25,43 @@ from __future__ import annotations
 import logging
 import multiprocessing as mp
 import os
+import pickle
 import sys
+from multiprocessing.connection import wait as wait_for
 from typing import Callable
 
 from .executors import init_forked_worker
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Figures"]
+__all__ = ["Figures", "FigureError"]
+
+
+class FigureError(RuntimeError):
+    """The figures' process ended before it drew what it was given, or a figure's error could
+    not be passed back as it was."""
+
+
+def _draw_loop(parent: int, jobs, results) -> None:
+    """The figures' process: each job from ``jobs`` drawn in turn, its outcome (None, or the
+    error it raised) sent back on ``results``; a None job ends it."""
+    init_forked_worker(parent)
+    while True:
+        job = jobs.get()
+        if job is None:
+            break
+        fn, args, kwargs = job
+        err = None
+        try:
+            fn(*args, **kwargs)
+        except Exception as exc:   # passed back: the engine raises it at the wait
+            err = exc
+        try:
+            data = pickle.dumps(err)
+        except Exception:   # an error that does not pickle: its text
+            data = pickle.dumps(FigureError(f"{type(err).__name__}: {err}"))
+        results.send_bytes(data)
+    results.close()
 
 
 class Figures:
@@ -40,40 +70,68 @@ class Figures:
     where it runs).
 
     Use as a context manager: leaving it waits for the figures (and raises the first error
-    one met), or, on an error, stops the process with what it has not drawn.
+    one met), or, on an error, stops the process with what it has not drawn. A process that
+    ends before it has drawn what it was given (killed) is an error at the wait, not a hang.
     """
 
     def __init__(self, parallel: bool):
         self.parallel = bool(parallel)
-        self._pool = None
-        self._pending: list = []   # (AsyncResult, what it draws)
+        self._proc = None
+        self._jobs = None      # the jobs' queue (put without waiting for the process)
+        self._results = None   # the receiving end of the outcomes' pipe
+        self._pending: list[str] = []   # what the figures given and not yet waited for draw
+
+    @property
+    def pid(self) -> int | None:
+        """The figures' process id (None: not started, or ended)."""
+        return None if self._proc is None else self._proc.pid
 
     def submit(self, fn: Callable, *args, **kwargs) -> None:
         """Draw ``fn(*args, **kwargs)``: in the figures' process, or here (not ``parallel``)."""
         if not self.parallel:
             fn(*args, **kwargs)
             return
-        if self._pool is None:
-            # a forked process inherits the unflushed output and would write it again
-            sys.stdout.flush()
-            sys.stderr.flush()
-            self._pool = mp.get_context("fork").Pool(1, initializer=init_forked_worker,
-                                                     initargs=(os.getpid(),))
-        name = getattr(fn, "__name__", repr(fn))
-        self._pending.append((self._pool.apply_async(fn, args, kwargs), name))
+        if self._proc is None:
+            self._start()
+        self._jobs.put((fn, args, kwargs))
+        self._pending.append(getattr(fn, "__name__", repr(fn)))
+
+    def _start(self) -> None:
+        ctx = mp.get_context("fork")
+        # a forked process inherits the unflushed output and would write it again
+        sys.stdout.flush()
+        sys.stderr.flush()
+        self._jobs = ctx.Queue()
+        self._results, send = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_draw_loop, args=(os.getpid(), self._jobs, send),
+                                 name="veriloc-figures", daemon=True)
+        self._proc.start()
+        send.close()
 
     def wait(self) -> None:
-        """Wait for every figure given; raise the first error one met."""
+        """Wait for every figure given; raise the first error one met (FigureError when the
+        process ended first)."""
         first = None
         while self._pending:
-            res, name = self._pending.pop(0)
-            try:
-                res.get()
-            except Exception as exc:
-                if first is None:
-                    first = exc
-                else:
-                    log.warning("figure %s failed too: %s", name, exc)
+            name = self._pending.pop(0)
+            # its outcome, or the process's end, whichever comes first (the outcomes come in
+            # the order given; a pipe whose writer has ended reads as EOF)
+            wait_for([self._results, self._proc.sentinel])
+            got = self._results.poll()
+            if got:
+                try:
+                    err = pickle.loads(self._results.recv_bytes())
+                except EOFError:
+                    got = False
+            if not got:
+                self._proc.join()
+                err = FigureError(f"the figures' process ended (exit code "
+                                  f"{self._proc.exitcode}) before it drew {name}")
+                self._pending.clear()
+            if err is not None and first is None:
+                first = err
+            elif err is not None:
+                log.warning("figure %s failed too: %s", name, err)
         if first is not None:
             raise first
 
@@ -82,17 +140,25 @@ class Figures:
         try:
             self.wait()
         finally:
-            if self._pool is not None:
-                self._pool.close()
-                self._pool.join()
-                self._pool = None
+            if self._proc is not None:
+                if self._proc.is_alive():
+                    self._jobs.put(None)
+                    self._proc.join()
+                self._release()
 
     def terminate(self) -> None:
         """Stop the figures' process now: the figures not yet drawn are not."""
         self._pending.clear()
-        if self._pool is not None:
-            self._pool.terminate()
-            self._pool = None
+        if self._proc is not None:
+            self._proc.terminate()
+            self._proc.join()
+            self._release()
+
+    def _release(self) -> None:
+        self._jobs.close()
+        self._jobs.cancel_join_thread()   # nothing left to feed a process that has ended
+        self._results.close()
+        self._proc = self._jobs = self._results = None
 
     def __enter__(self) -> "Figures":
         return self

@@ -15,7 +15,8 @@ Executors: the detectors carry state from point to point and run here, in order;
 the points ahead go to forked local processes (``workers``) or, in trajectory chunks, to a Dask
 cluster (``scheduler``), with the serial run's numbers either way (see the executors in
 :mod:`~veriloc_rt.sim.executors`). With either, the figures are drawn by one more forked process
-while the run goes on (:mod:`~veriloc_rt.sim.background`). Monte Carlo over realisations: :mod:`~veriloc_rt.sim.montecarlo`.
+while the run goes on (:mod:`~veriloc_rt.sim.background`). Monte Carlo over realisations:
+:mod:`~veriloc_rt.sim.montecarlo`.
 """
 
 from __future__ import annotations
@@ -264,8 +265,8 @@ def run(cfg: Config, out_dir: str | Path | None = None, progress: Progress | boo
                 check_resume(out, cfg)
             else:
                 check_fresh(out, cfg, force)
-        # figures drawn in forked children while the run goes on, when it runs in more
-        # than one process anyway (joined before it ends; stopped with it)
+        # figures drawn by a forked process while the run goes on, when it runs in more
+        # than one process anyway (waited for before it ends; stopped with it)
         figures = stack.enter_context(Figures(parallel=workers > 1 or client is not None))
         try:
             return _run(cfg, out, progress, resume, workers, client, cache_dir, save_cir,

@@ -22,6 +22,8 @@ import threading
 import time
 import uuid
 from collections import deque
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 
 from ..errors import InputError
@@ -31,8 +33,8 @@ from .runner import ScenarioRunner
 
 log = logging.getLogger(__name__)
 
-__all__ = ["LocalChains", "ForkPool", "DaskChains", "check_workers", "scheduler_client",
-           "init_forked_worker",
+__all__ = ["LocalChains", "ForkPool", "WorkerLost", "DaskChains", "check_workers",
+           "scheduler_client", "init_forked_worker",
            "connect", "probe_scheduler", "local_cluster", "dask_failure", "named_failures",
            "CONNECT_TIMEOUT_S"]
 
@@ -88,27 +90,50 @@ class LocalChains:
     terminate = close
 
 
+class WorkerLost(RuntimeError):
+    """A chain worker process ended while it computed (killed: out of memory, a signal)."""
+
+
+class _ForkExecutor(ProcessPoolExecutor):
+    """The standard library's process pool, which notices a worker that ended and fails its
+    tasks (``BrokenProcessPool``) where ``multiprocessing.Pool`` waits for their results for
+    ever; with a way to stop its workers at once."""
+
+    def kill(self) -> None:
+        """Stop every worker now (SIGTERM) and drop the tasks not started."""
+        for proc in list((self._processes or {}).values()):
+            proc.terminate()
+        self.shutdown(wait=True, cancel_futures=True)
+
+
 class ForkPool:
     """``workers`` forked processes computing :meth:`ScenarioRunner.compute_chains`.
 
-    Forked, so the workers inherit the runner (keys included) without pickling it.
+    Forked, so the workers inherit the runner (keys included) without pickling it. A worker
+    that ends while it computes (the kernel's out-of-memory killer, a signal) stops the run
+    with :class:`WorkerLost` instead of leaving it waiting; the rows and chain results written
+    so far are kept (``--resume`` continues).
     """
 
     def __init__(self, runner: ScenarioRunner, workers: int):
         global _WORKER
         _WORKER = runner
-        self.pool = mp.get_context("fork").Pool(workers, initializer=init_forked_worker,
-                                                initargs=(os.getpid(),))
+        self.pool = _ForkExecutor(workers, mp_context=mp.get_context("fork"),
+                                  initializer=init_forked_worker, initargs=(os.getpid(),))
 
     def imap(self, scenario: str, points: list[int]):
-        return self.pool.imap(_work, [(scenario, i) for i in points], chunksize=2)
+        try:
+            yield from self.pool.map(_work, [(scenario, i) for i in points], chunksize=2)
+        except BrokenProcessPool:
+            raise WorkerLost("a chain worker process ended while it computed (killed: out of "
+                             "memory, or a signal); finished points and chain results are "
+                             "kept in --out: add --resume to continue") from None
 
     def close(self) -> None:
-        self.pool.close()
-        self.pool.join()
+        self.pool.shutdown(wait=True)
 
     def terminate(self) -> None:
-        self.pool.terminate()
+        self.pool.kill()
 
 
 def init_forked_worker(parent: int) -> None:

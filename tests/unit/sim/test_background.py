@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from veriloc_rt.fileio import atomic_write_text
-from veriloc_rt.sim.background import Figures
+from veriloc_rt.sim.background import FigureError, Figures
 
 
 def _draw(path: Path, seed: int) -> None:
@@ -80,4 +80,22 @@ def test_leaving_on_an_error_stops_the_process_and_keeps_the_runs_error(tmp_path
             t = time.perf_counter()
             raise KeyError("the run's")
     assert time.perf_counter() - t < 10   # not waited for the 30 s figure
+    assert not (tmp_path / "never.txt").exists()
+
+
+def test_a_killed_process_is_an_error_at_the_wait_not_a_hang(tmp_path):
+    figs = Figures(parallel=True)
+    figs.submit(atomic_write_text, tmp_path / "first.txt", "drawn")
+    figs.submit(time.sleep, 30)
+    figs.submit(atomic_write_text, tmp_path / "never.txt", "drawn")
+    deadline = time.perf_counter() + 20
+    while not (tmp_path / "first.txt").exists() and time.perf_counter() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.2)   # into the 30 s job
+    os.kill(figs.pid, 9)
+    t = time.perf_counter()
+    with pytest.raises(FigureError, match="exit code -9.*before it drew sleep"):
+        figs.close()
+    assert time.perf_counter() - t < 10
+    assert (tmp_path / "first.txt").read_text() == "drawn"
     assert not (tmp_path / "never.txt").exists()
