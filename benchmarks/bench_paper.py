@@ -184,6 +184,8 @@ def main(argv=None) -> int:
             return 2
     out = Path(args.out)
     results = {}
+    speed = {"start": harness.machine_speed()}
+    print(harness.speed_line(speed["start"]) + " (at the start)", flush=True)
     for model, path in {**CONFIGS, "raytrace": Path(args.raytrace_config)}.items():
         if args.only and model != args.only:
             continue
@@ -219,7 +221,10 @@ def main(argv=None) -> int:
     line = preset_line(results)
     if line:
         print(line)
-    (out / "bench_paper.json").write_text(json.dumps(results, indent=2))
+    speed["end"] = harness.machine_speed()
+    print(harness.speed_line(speed["end"], speed["start"]) + " (at the end, against the start)")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench_paper.json").write_text(json.dumps({**results, "machine_ms": speed}, indent=2))
     mem = max(peak_mib(t) for t in results.values())
     print(f"peak memory {mem / 1024:.2f} GiB (target {MEMORY_TARGET_MIB / 1024:.0f} GiB: "
           f"{'met' if mem <= MEMORY_TARGET_MIB else 'missed'}); wrote {out}/bench_paper.json")

@@ -17,7 +17,10 @@
 * :func:`run_cli`: ``veriloc-rt run`` in its own process, its wall seconds and ``metrics.json``;
 * :func:`kernel_cache`, :func:`kernel_count`: a kernel cache folder of the bench's own (Dr.Jit's,
   ``DRJIT_CACHE_DIR``, and the chain's Numba kernels', ``NUMBA_CACHE_DIR``), emptied for a cold
-  run, and the Dr.Jit kernels it holds.
+  run, and the Dr.Jit kernels it holds;
+* :func:`machine_speed`, :func:`speed_line`: what four fixed workloads of the chain's kinds
+  cost on this machine now (a transform, normals, a pass over a grid, the interpreter), to tell
+  a slower hour from slower code when benches of different hours are compared.
 
 The benchmarks import it as a sibling module (``python benchmarks/NAME.py`` puts this folder
 first on ``sys.path``).
@@ -183,3 +186,59 @@ def kernel_cache(folder: Path, empty: bool = False) -> dict:
 def kernel_count(folder: Path) -> int:
     """Compiled kernels in a Dr.Jit kernel cache folder (one file each)."""
     return sum(1 for p in folder.glob("*" + KERNEL_SUFFIX)) if folder.is_dir() else 0
+
+
+#: the fixed workloads of :func:`machine_speed`, the kinds of work the chain's CPU goes to
+#: (docs/performance.md, "the arithmetic's floor"): the ToA scan's transform (pocketfft, [135,
+#: 1024] complex64), noise normals (PCG64 ziggurat, 200,000), one elementwise pass over the
+#: paper config's grid (complex128 [5, 10, 14, 624] added in place) and the interpreter (a
+#: Python loop of 50,000 additions)
+SPEED_WORKLOADS = ("fft", "normals", "grid pass", "python")
+
+
+def machine_speed(repeats: int = 25) -> dict[str, float]:
+    """ms of CPU (thread time) a call of each of :data:`SPEED_WORKLOADS`: the median of
+    ``repeats`` passes of 20 calls. The same work at every call, so two values of one workload
+    differ only by the machine's speed at the time: the 2-core VM's varied up to 2x from hour
+    to hour, and six probes in one minute spread by 3-5 % (transform, grid pass) and 15-20 %
+    (normals, interpreter). About 3 s."""
+    import scipy.fft
+
+    rng = np.random.default_rng(0)
+    spectra = (rng.standard_normal((135, 1024)) + 1j * rng.standard_normal((135, 1024))).astype(np.complex64)
+    grid = np.zeros((5, 10, 14, 624), dtype=np.complex128)
+    other = np.ones_like(grid)
+    gen = np.random.Generator(np.random.PCG64(1))
+
+    def python():
+        total = 0
+        for i in range(50_000):
+            total += i
+        return total
+
+    work = {"fft": lambda: scipy.fft.ifft(spectra, axis=-1),
+            "normals": lambda: gen.standard_normal(200_000),
+            "grid pass": lambda: np.add(grid, other, out=grid),
+            "python": python}
+    out = {}
+    for name in SPEED_WORKLOADS:
+        passes = []
+        for _ in range(repeats):
+            t = time.thread_time()
+            for _ in range(20):
+                work[name]()
+            passes.append(time.thread_time() - t)
+        out[name] = 1000.0 * float(np.median(passes)) / 20
+    return out
+
+
+def speed_line(now: dict[str, float], before: dict[str, float] | None = None) -> str:
+    """``machine: fft 0.52 ms, normals ...`` of :func:`machine_speed`'s values, and with
+    ``before`` each one's change against it in per cent (positive: slower now)."""
+    parts = []
+    for name in SPEED_WORKLOADS:
+        part = f"{name} {now[name]:.3g} ms"
+        if before is not None and before.get(name):
+            part += f" ({100.0 * (now[name] / before[name] - 1.0):+.0f} %)"
+        parts.append(part)
+    return "machine: " + ", ".join(parts)
