@@ -1,9 +1,10 @@
 """Where the per-point chains' CPU goes, by the native code that runs it: a sampling profile
 (`py-spy <https://github.com/benfred/py-spy>`_, ``record --native``) of
 ``ScenarioRunner.compute_chains`` on a config's benign points and attack-window points, each
-sample counted by its innermost frame and put in one class: the libraries' kernels (normals,
-FFT, BLAS, Numba-compiled loops, libm, belief propagation, AES and signatures), NumPy's own
-loops and dispatch, the C library's memory calls, and the interpreter.
+sample put in one class (:func:`classify_stack`: a module's first load, the tag decoder's belief
+propagation wherever in it the sample lies, else by the innermost frame): the libraries' kernels
+(normals, FFT, BLAS, Numba-compiled loops, libm, belief propagation, AES and signatures), NumPy's
+own loops and dispatch, the C library's memory calls, and the interpreter.
 
 This is what decides how far the chain can go without doing less arithmetic: the kernels do
 work the results depend on value for value, NumPy's loops are the model's elementwise
@@ -81,8 +82,7 @@ CLASSES = (
     ("compiled loops (Numba)", ("numba", "__numba", "_ZN0", "<numba", "_dispatcher.cpp")),
     ("libm (exp, sin, cos, tanh)", ("libm.so", "libm-", "__exp", "__sin", "__cos", "__tanh",
                                     "libmvec")),
-    (BP, ("ldpc", "_rust.abi3", "libcrypto", "cryptography",
-                                          "bp_decoder", "nacl", "ed25519")),
+    (BP, ("ldpc", "_rust.abi3", "libcrypto", "cryptography", "bp_decoder", "nacl", "ed25519")),
     ("NumPy loops and dispatch", ("_multiarray_umath", "numpy/_core", "numpy.core",
                                   "_umath_linalg", "npy_", "PyArray")),
     ("libc (memcpy, memset, allocation)", ("libc.so", "libc-", "memcpy", "memset", "malloc",
