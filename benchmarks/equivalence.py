@@ -1,8 +1,9 @@
 """Statistical equivalence of two versions of the chain: what users conclude from, compared.
 
 A speed-up that changes the random numbers (not the distributions) cannot be checked by
-comparing files. This runs a config (a UMa one: no ray tracing) over many seeds under two
-*versions* and compares, version A against version B, what a user reads off a run:
+comparing files. This runs a config (stochastic or ray traced: a seed's links are traced once,
+into a cache both versions read) over many seeds under two *versions* and compares, version A
+against version B, what a user reads off a run:
 
 * **outcome shares** per scenario (success / large error / service failure over the evaluated
   points, standard and encrypted PRS): each share with its Wilson 95 % interval, the two
@@ -40,7 +41,7 @@ tested on two identical versions).
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/equivalence.py [CONFIG] --seeds 8 \\
         --points 150 [--a-env VERILOC_RT_REFERENCE=all] [--b-env NAME=VALUE] \\
-        [--b-set FIELD=JSON] [--b-seed-offset N] [--out REPORT.md]
+        [--b-set FIELD=JSON] [--b-seed-offset N] [--out REPORT.md] [--trace-cache DIR]
 
 It also reports each version's chain CPU a trajectory point (``time.process_time`` around every
 ``ScenarioRunner.compute_chains`` call, all scenarios' chains of the point; the versions
@@ -57,6 +58,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from contextlib import contextmanager  # noqa: E402
@@ -150,9 +152,13 @@ class ChainClock:
             ScenarioRunner.compute_chains = real
 
 
-def run_rows(config: str | None, seed: int, points: int, version: Version) -> tuple[dict, float]:
+def run_rows(config: str | None, seed: int, points: int, version: Version,
+             cache_dir: Path | None = None) -> tuple[dict, float]:
     """One run (no output folder, one process) of ``config`` at ``seed`` under ``version``:
-    (rows by scenario, chain CPU seconds)."""
+    (rows by scenario, chain CPU seconds).
+
+    :param cache_dir: the ray tracer's cache (None: none, every traced link traced again)
+    """
     from veriloc_rt.config import load_config, with_overrides
     from veriloc_rt.sim.engine import run
 
@@ -162,7 +168,7 @@ def run_rows(config: str | None, seed: int, points: int, version: Version) -> tu
     cfg = with_overrides(cfg, points=points, seed=seed + version.seed_offset)
     clock = ChainClock()
     with environment(version.env), clock.installed():
-        res = run(cfg, None, progress=None, workers=1, cache_dir=None)
+        res = run(cfg, None, progress=None, workers=1, cache_dir=cache_dir)
     return res.rows, clock.seconds
 
 
@@ -191,15 +197,21 @@ def add_rows(sample: Sample, rows: dict, points: int) -> None:
 
 
 def collect(config: str | None, seeds: list[int], points: int, versions: dict[str, Version],
-            log=print) -> dict[str, Sample]:
-    """Both versions over ``seeds``, alternating seed by seed."""
+            log=print, cache_dir: str | Path | None = None) -> dict[str, Sample]:
+    """Both versions over ``seeds``, alternating seed by seed. A ray-traced config's links are
+    traced into one cache that every run reads (``cache_dir``, else a temporary folder removed
+    at the end): a seed's drive is traced once, by its first version, and the other reads it
+    (the cache's key holds the scene, the drive and the tracing settings, so a version that
+    changes those traces its own)."""
     samples = {name: Sample() for name in versions}
-    for seed in seeds:
-        for name, v in versions.items():
-            rows, cpu = run_rows(config, seed, points, v)
-            add_rows(samples[name], rows, points)
-            samples[name].chain_cpu_s += cpu
-            log(f"seed {seed + v.seed_offset} version {name}: chain {1000 * cpu / points:.1f} ms a point")
+    with tempfile.TemporaryDirectory(prefix="equivalence_trace_") as tmp:
+        cache = Path(cache_dir) if cache_dir is not None else Path(tmp)
+        for seed in seeds:
+            for name, v in versions.items():
+                rows, cpu = run_rows(config, seed, points, v, cache)
+                add_rows(samples[name], rows, points)
+                samples[name].chain_cpu_s += cpu
+                log(f"seed {seed + v.seed_offset} version {name}: chain {1000 * cpu / points:.1f} ms a point")
     return samples
 
 
@@ -456,6 +468,9 @@ def main(argv=None) -> int:
         ap.add_argument(f"--{v}-seed-offset", type=int, default=0,
                         help=f"version {v.upper()} runs seeds shifted by this")
     ap.add_argument("--out", help="write the report (markdown) here too")
+    ap.add_argument("--trace-cache", metavar="DIR",
+                    help="a ray-traced config's cache folder, kept for later comparisons on the "
+                         "same seeds (default: a temporary one, removed at the end)")
     args = ap.parse_args(argv)
     if args.seeds < 1 or args.points < 4 or not 0 < args.alpha < 1:
         print("error: --seeds, --points, --alpha: out of range", file=sys.stderr)
@@ -474,7 +489,8 @@ def main(argv=None) -> int:
     t = time.perf_counter()
     try:
         samples = collect(args.config, seeds, args.points, versions,
-                          log=lambda s: print(s, file=sys.stderr, flush=True))
+                          log=lambda s: print(s, file=sys.stderr, flush=True),
+                          cache_dir=args.trace_cache)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
