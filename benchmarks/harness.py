@@ -175,12 +175,19 @@ def kernel_cache(folder: Path, empty: bool = False) -> dict:
     """The environment that points the compiled-kernel caches at ``folder`` (created; emptied
     first when ``empty``): ``DRJIT_CACHE_DIR``, which Dr.Jit reads at start instead of
     ``~/.drjit``, and ``NUMBA_CACHE_DIR`` (``folder/numba``), where the chain's Numba kernels
-    (``veriloc_rt/phy/jit.py``) are kept instead of beside their modules: an emptied folder is
-    a new user's first run, which compiles both."""
+    (``veriloc_rt/phy/jit.py``) are kept instead of beside their modules; and a home of the
+    bench's own, ``folder/home`` (``HOME``, ``XDG_CACHE_HOME``, ``XDG_CONFIG_HOME`` and
+    ``MPLCONFIGDIR`` under it), so that every per-user cache (matplotlib's font list among
+    them) starts empty too: an emptied folder is a new user's first run, which compiles and
+    builds them all."""
     if empty:
         shutil.rmtree(folder, ignore_errors=True)
-    folder.mkdir(parents=True, exist_ok=True)
-    return {"DRJIT_CACHE_DIR": str(folder.resolve()), "NUMBA_CACHE_DIR": str((folder / "numba").resolve())}
+    home = folder / "home"
+    home.mkdir(parents=True, exist_ok=True)
+    home = home.resolve()
+    return {"DRJIT_CACHE_DIR": str(folder.resolve()), "NUMBA_CACHE_DIR": str((folder / "numba").resolve()),
+            "HOME": str(home), "XDG_CACHE_HOME": str(home / ".cache"),
+            "XDG_CONFIG_HOME": str(home / ".config"), "MPLCONFIGDIR": str(home / ".config" / "matplotlib")}
 
 
 def kernel_count(folder: Path) -> int:

@@ -59,3 +59,23 @@ def test_samples_are_classed_by_their_stack(native, frames, expected):
     names = {"bp": native.BP, "imports": native.IMPORTS, "fft": "FFT (pocketfft)",
              "libm": "libm (exp, sin, cos, tanh)"}
     assert native.classify_stack(frames) == names[expected]
+
+
+def test_the_cold_runs_caches_and_home_are_the_benchs_own_and_start_empty(harness, tmp_path):
+    """Every cache a new user's first run fills lies under the bench's folder, and
+    ``empty=True`` removes what an earlier run left there (the cold run's premise)."""
+    folder = tmp_path / "kernel-cache"
+    (folder / "numba").mkdir(parents=True)
+    (folder / "old.bin").write_bytes(b"kernel")
+    (folder / "numba" / "old.nbi").write_bytes(b"index")
+    env = harness.kernel_cache(folder, empty=True)
+    assert not (folder / "old.bin").exists() and not (folder / "numba").exists()
+    assert harness.kernel_count(folder) == 0
+    for name in ("DRJIT_CACHE_DIR", "NUMBA_CACHE_DIR", "HOME", "XDG_CACHE_HOME", "XDG_CONFIG_HOME",
+                 "MPLCONFIGDIR"):
+        assert Path(env[name]).is_relative_to(folder.resolve()), name
+    assert Path(env["HOME"]).is_dir()
+    # kept (not emptied) without ``empty``: the warm run's kernels stay
+    (folder / "new.bin").write_bytes(b"kernel")
+    harness.kernel_cache(folder)
+    assert harness.kernel_count(folder) == 1
