@@ -106,6 +106,7 @@ class Sample:
     links: list = field(default_factory=list)       # benign links: (snr_re_db, heard, toa_error_m)
     chain_cpu_s: float = 0.0
     points: int = 0
+    tracer_calls: int = 0   # ray-tracing (PathSolver) calls its runs made: the cache's misses
 
     def add(self, key, store: dict, values) -> None:
         store.setdefault(key, []).extend(values)
@@ -153,9 +154,10 @@ class ChainClock:
 
 
 def run_rows(config: str | None, seed: int, points: int, version: Version,
-             cache_dir: Path | None = None) -> tuple[dict, float]:
+             cache_dir: Path | None = None) -> tuple[dict, float, int]:
     """One run (no output folder, one process) of ``config`` at ``seed`` under ``version``:
-    (rows by scenario, chain CPU seconds).
+    (rows by scenario, chain CPU seconds, ray-tracing calls made: none when the cache held them
+    all or the config is stochastic).
 
     :param cache_dir: the ray tracer's cache (None: none, every traced link traced again)
     """
@@ -169,7 +171,7 @@ def run_rows(config: str | None, seed: int, points: int, version: Version,
     clock = ChainClock()
     with environment(version.env), clock.installed():
         res = run(cfg, None, progress=None, workers=1, cache_dir=cache_dir)
-    return res.rows, clock.seconds
+    return res.rows, clock.seconds, int(res.propagation.stats.get("calls", 0))
 
 
 def add_rows(sample: Sample, rows: dict, points: int) -> None:
@@ -208,10 +210,12 @@ def collect(config: str | None, seeds: list[int], points: int, versions: dict[st
         cache = Path(cache_dir) if cache_dir is not None else Path(tmp)
         for seed in seeds:
             for name, v in versions.items():
-                rows, cpu = run_rows(config, seed, points, v, cache)
+                rows, cpu, calls = run_rows(config, seed, points, v, cache)
                 add_rows(samples[name], rows, points)
                 samples[name].chain_cpu_s += cpu
-                log(f"seed {seed + v.seed_offset} version {name}: chain {1000 * cpu / points:.1f} ms a point")
+                samples[name].tracer_calls += calls
+                log(f"seed {seed + v.seed_offset} version {name}: chain {1000 * cpu / points:.1f} ms a point"
+                    + (f", {calls} ray-tracing calls" if calls else ""))
     return samples
 
 
